@@ -1,0 +1,5 @@
+"""The 1 kHz inner loop: robot state, task maps, collision distances and operational-space control."""
+
+from amex.control.osc import PD, Command, OperationalSpaceController, OSCGains
+
+__all__ = ["PD", "Command", "OSCGains", "OperationalSpaceController"]

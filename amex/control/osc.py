@@ -1,0 +1,167 @@
+"""Operational-space control: the paper's Eq. 4-6 as a weighted least-squares problem in q_ddot.
+
+Each active task map i contributes ``c_i || J_i q_ddot + J_dot_i v - y_ddot*_i ||^2`` with the PD
+target of Eq. 6, ``y_ddot* = Kp (y* - phi(q)) + Kd (y_dot* - phi_dot(q))``; the regularizer
+``||q_ddot||_H^2`` of Eq. 4 uses ``H = reg * I``. The minimizer solves the 7x7 normal equations
+
+    (H + sum_i c_i J_i^T J_i) q_ddot = sum_i c_i J_i^T (y_ddot*_i - J_dot_i v),
+
+and the torque is ``tau = M q_ddot + h`` (inverse dynamics with Pinocchio's model), clipped to the
+joint torque limits. Unlike the original code, the drift ``J_dot v`` is included.
+
+The problem is built by :func:`build_objective` (pure) and solved by :func:`solve_objective`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+from scipy.linalg.lapack import dposv
+
+from amex.control.collision import CollisionModel
+from amex.control.state import RobotState
+from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
+from amex.errors import SolverError
+from amex.robot import RobotModel
+
+
+@dataclass(frozen=True)
+class PD:
+    """Gains and weight of one task row of Eq. 5-6.
+
+    Attributes:
+        kp: stiffness [1/s^2].
+        kd: damping [1/s].
+        weight: the cost weight ``c`` of Eq. 5 (dimensionless, relative to the others).
+    """
+
+    kp: float
+    kd: float
+    weight: float
+
+
+@dataclass(frozen=True)
+class OSCGains:
+    """All gains of the inner controller. Defaults follow the original code where it had them.
+
+    Attributes:
+        pos: TCP position task.
+        dir: TCP z-axis task.
+        col: collision task (target: margin not penetrated); original Kp 2500, Kd 100.
+        joint: joint target task, used when a command carries joint targets (CR; original 100/100).
+        damping: joint damping/posture task pulling towards ``q0`` with ``kp`` (original: Kd 10 at
+            precision 0.1, no stiffness).
+        margin: collision margin [m].
+        reg: the regularizer ``H = reg * I`` of Eq. 4.
+    """
+
+    pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
+    dir: PD = field(default_factory=lambda: PD(1.0, 100.0, 0.5))
+    col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
+    joint: PD = field(default_factory=lambda: PD(100.0, 100.0, 1.0))
+    damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
+    margin: float = 0.02
+    reg: float = 1e-6
+
+
+class Command(NamedTuple):
+    """What the outer loop sends to the inner controller (held for one outer period).
+
+    Either a task-space target ``y, yd`` (6-D: TCP position [m] and z-axis; velocities per second),
+    or a joint-space target ``q, qd`` [rad, rad/s], or both.
+    """
+
+    y: np.ndarray | None = None
+    yd: np.ndarray | None = None
+    q: np.ndarray | None = None
+    qd: np.ndarray | None = None
+
+
+class Objective(NamedTuple):
+    """The normal equations ``A q_ddot = b`` of the OSC problem (A: (n, n) SPD, b: (n,))."""
+
+    A: np.ndarray
+    b: np.ndarray
+
+
+def _accumulate(
+    A: np.ndarray, b: np.ndarray, terms: TaskTerms, gains: PD, target: np.ndarray, target_vel
+) -> None:
+    """Add ``c ||J q_ddot + drift - y_ddot*||^2`` to the normal equations, in place."""
+    yddot = gains.kp * (target - terms.phi) + gains.kd * (target_vel - terms.phid) - terms.drift
+    cJt = gains.weight * terms.J.T
+    A += cJt @ terms.J
+    b += cJt @ yddot
+
+
+class OperationalSpaceController:
+    """The 1 kHz inner loop's controller.
+
+    Args:
+        robot: the controlled arm (its Pinocchio model is the controller's model).
+        gains: task gains and weights.
+        collision: arm-obstacle distance model, or ``None`` for a scene without obstacles.
+        q_rest: posture the damping task pulls towards (only if ``gains.damping.kp > 0``).
+    """
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        gains: OSCGains,
+        collision: CollisionModel | None = None,
+        q_rest: np.ndarray | None = None,
+    ) -> None:
+        self.robot = robot
+        self.gains = gains
+        self.pos_map = PositionMap()
+        self.dir_map = AxisMap()
+        self.joint_map = JointMap(robot.nv)
+        self.col_map = (
+            CollisionMap(collision, gains.margin)
+            if collision is not None and collision.n_obstacles > 0
+            else None
+        )
+        self.q_rest = robot.q0.copy() if q_rest is None else np.asarray(q_rest, dtype=float)
+        self._zeros = np.zeros(robot.nv)
+        self._zero1 = np.zeros(1)
+        self._lo = -robot.torque_limit
+        self._hi = robot.torque_limit
+
+    def build_objective(self, state: RobotState, command: Command) -> Objective:
+        """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve)."""
+        g = self.gains
+        n = self.robot.nv
+        A = g.reg * np.eye(n)
+        b = np.zeros(n)
+        if command.y is not None:
+            yd = command.yd if command.yd is not None else np.zeros(6)
+            _accumulate(A, b, self.pos_map.evaluate(state), g.pos, command.y[:3], yd[:3])
+            _accumulate(A, b, self.dir_map.evaluate(state), g.dir, command.y[3:], yd[3:])
+        if command.q is not None:
+            qd = command.qd if command.qd is not None else self._zeros
+            _accumulate(A, b, self.joint_map.evaluate(state), g.joint, command.q, qd)
+        if self.col_map is not None:
+            terms = self.col_map.evaluate(state)
+            if terms.phi[0] > 0.0:
+                _accumulate(A, b, terms, g.col, self._zero1, self._zero1)
+        _accumulate(A, b, self.joint_map.evaluate(state), g.damping, self.q_rest, self._zeros)
+        return Objective(A, b)
+
+    def accelerations(self, state: RobotState, command: Command) -> np.ndarray:
+        """The minimizer q_ddot* of Eq. 4, shape (7,) [rad/s^2]."""
+        return solve_objective(self.build_objective(state, command))
+
+    def torque(self, state: RobotState, command: Command) -> np.ndarray:
+        """Joint torques ``tau = M q_ddot* + h``, clipped to the limits, shape (7,) [N m]."""
+        tau = state.M @ self.accelerations(state, command) + state.h
+        return np.minimum(np.maximum(tau, self._lo), self._hi)
+
+
+def solve_objective(objective: Objective) -> np.ndarray:
+    """Solve ``A x = b`` by Cholesky (LAPACK ``dposv``); raise :class:`SolverError` if A is not SPD."""
+    _, x, info = dposv(objective.A, objective.b)
+    if info != 0:
+        raise SolverError(f"OSC normal equations not positive definite (info={info})", objective)
+    return x

@@ -1,0 +1,88 @@
+"""The interface every motion-adaptation method implements, and the data it exchanges.
+
+A method sees an :class:`Observation` (measured robot state, current goal, obstacles) at the outer
+rate and answers with a :class:`~amex.control.osc.Command` for the inner controller. It never
+touches the simulator, so it can be driven from any robot loop, with plain numpy arrays.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from amex.control.osc import PD, Command
+from amex.plan.reference import ReferencePlan
+from amex.robot import RobotModel
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a method measures at one outer step.
+
+    Attributes:
+        t: time since the episode started [s].
+        q: joint positions, shape (7,) [rad].
+        qd: joint velocities, shape (7,) [rad/s].
+        y: task state (TCP position [m], TCP z-axis), shape (6,).
+        yd: task velocity, shape (6,).
+        goal: current goal g in the same task space, shape (6,).
+        obstacles: obstacle centres, shape (k, 3) [m].
+        obstacle_radii: obstacle radii, shape (k,) [m].
+    """
+
+    t: float
+    q: np.ndarray
+    qd: np.ndarray
+    y: np.ndarray
+    yd: np.ndarray
+    goal: np.ndarray
+    obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    obstacle_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+@dataclass
+class MethodConfig:
+    """Settings every method has: the inner controller's gains for its task-space commands.
+
+    Attributes:
+        name: the method's registry key.
+        pos: gains of the TCP position task (Eq. 6).
+        dir: gains of the TCP axis task (Eq. 6).
+    """
+
+    name: str = ""
+    pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
+    dir: PD = field(default_factory=lambda: PD(1.0, 100.0, 0.5))
+
+
+class Method(abc.ABC):
+    """A motion-adaptation method: reference plan in, one command per outer step out.
+
+    Subclasses set :attr:`name` (equal to their module name and Hydra option) and
+    :attr:`config_class`, and implement :meth:`from_plan`, :meth:`reset` and :meth:`step`.
+    """
+
+    name: ClassVar[str] = ""
+    config_class: ClassVar[type[MethodConfig]] = MethodConfig
+
+    @classmethod
+    @abc.abstractmethod
+    def from_plan(
+        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
+    ) -> Method:
+        """Build the method for ``plan`` with outer period ``dt`` [s]."""
+
+    @abc.abstractmethod
+    def reset(self, obs: Observation) -> None:
+        """Start a new execution from ``obs`` (called once before the first :meth:`step`)."""
+
+    @abc.abstractmethod
+    def step(self, obs: Observation) -> Command:
+        """One outer-loop update: the next command for the inner controller."""
+
+    def internals(self) -> dict[str, Any]:
+        """The method's internal state after the last step, for logs (e.g. AMEX's phase)."""
+        return {}

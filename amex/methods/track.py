@@ -1,0 +1,67 @@
+"""Plain tracking of the reference plan by time, without any adaptation (the baseline)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from amex.control.osc import PD, Command
+from amex.methods.base import Method, MethodConfig, Observation
+from amex.plan.reference import ReferencePlan
+from amex.robot import RobotModel
+
+
+@dataclass
+class TrackConfig(MethodConfig):
+    """Tracking gains: a stiff, critically damped PD (omega = 20 rad/s) on the timed reference."""
+
+    name: str = "track"
+    pos: PD = field(default_factory=lambda: PD(400.0, 40.0, 1.0))
+    dir: PD = field(default_factory=lambda: PD(400.0, 40.0, 0.5))
+
+
+class Track(Method):
+    """Send ``y* = tau_ref(t)``, ``y_dot* = tau_ref'(t)``; hold the final sample after T_ref.
+
+    The goal is ignored: this is what executing a plan without adaptation does when the world
+    changes, the reason the paper's methods exist.
+    """
+
+    name = "track"
+    config_class = TrackConfig
+
+    def __init__(self, reference: np.ndarray, dt_ref: float) -> None:
+        """Args: reference: tau_ref samples, shape (N + 1, 6); dt_ref: their period [s]."""
+        self.reference = np.asarray(reference, dtype=float)
+        self.dt_ref = float(dt_ref)
+        self.velocity = np.gradient(self.reference, self.dt_ref, axis=0)
+        self.velocity[-1] = 0.0
+        self._index = 0
+
+    @classmethod
+    def from_plan(
+        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
+    ) -> Track:
+        """See :meth:`Method.from_plan`."""
+        return cls(plan.y, plan.dt)
+
+    def reset(self, obs: Observation) -> None:
+        """See :meth:`Method.reset`."""
+        self._index = 0
+
+    def step(self, obs: Observation) -> Command:
+        """See :meth:`Method.step`; linear interpolation between reference samples."""
+        u = obs.t / self.dt_ref
+        last = len(self.reference) - 1
+        k = min(int(u), last - 1)
+        a = min(u - k, 1.0)
+        self._index = k
+        y = (1.0 - a) * self.reference[k] + a * self.reference[k + 1]
+        yd = self.velocity[k] if u < last else np.zeros(6)
+        return Command(y=y, yd=yd)
+
+    def internals(self) -> dict[str, Any]:
+        """The reference sample index being tracked."""
+        return {"index": self._index}

@@ -1,0 +1,1 @@
+"""Trajectories: the reference plan, its Gauss-Newton optimizer and phase-parametrized splines."""

@@ -1,0 +1,39 @@
+"""The reference plan: what every method starts from (the paper's tau_ref, Section IV)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ReferencePlan:
+    """A joint trajectory planned in the obstacle-free reference scene and its task-space image.
+
+    Sample k is at time ``k * dt``; the plan lasts ``duration = (len(q) - 1) * dt``.
+
+    Attributes:
+        q: joint trajectory, shape (N + 1, 7) [rad]; ``q[0]`` is the start.
+        y: task-space image tau_ref: TCP position [m] and TCP z-axis, shape (N + 1, 6).
+        dt: sample period [s].
+    """
+
+    q: np.ndarray
+    y: np.ndarray
+    dt: float
+
+    @property
+    def duration(self) -> float:
+        """T_ref [s]."""
+        return (len(self.q) - 1) * self.dt
+
+    @property
+    def goal(self) -> np.ndarray:
+        """g_ref = tau_ref(1), shape (6,)."""
+        return self.y[-1]
+
+    @property
+    def times(self) -> np.ndarray:
+        """Sample times, shape (N + 1,) [s]."""
+        return np.arange(len(self.q)) * self.dt
