@@ -18,16 +18,17 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
+import pinocchio as pin
 from scipy.linalg.lapack import dposv
 
 from amex.control.collision import CollisionModel
-from amex.control.state import RobotState
+from amex.control.state import RobotState, axis_drift, skew
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
 from amex.errors import SolverError
 from amex.robot import RobotModel
 
 
-@dataclass(frozen=True)
+@dataclass
 class PD:
     """Gains and weight of one task row of Eq. 5-6.
 
@@ -128,9 +129,62 @@ class OperationalSpaceController:
         self._zero1 = np.zeros(1)
         self._lo = -robot.torque_limit
         self._hi = robot.torque_limit
+        n = robot.nv
+        self._eye = np.eye(n)
+        self._diag = (gains.reg + gains.damping.weight) * np.eye(n)
+        self._damp_kd = -gains.damping.weight * gains.damping.kd
+        self._damp_kp = gains.damping.weight * gains.damping.kp
+        self._kp6 = np.array([gains.pos.kp] * 3 + [gains.dir.kp] * 3)
+        self._kd6 = np.array([gains.pos.kd] * 3 + [gains.dir.kd] * 3)
+        w6 = np.array([gains.pos.weight] * 3 + [gains.dir.weight] * 3)
+        self._sqrt_w6 = np.sqrt(w6)[:, None]
+        self._X = np.zeros((6, n + 1))
+        self._zero6 = np.zeros(6)
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
-        """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve)."""
+        """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
+
+        The position and axis rows are stacked into one 6-row system with per-row gains and
+        weights (fewer, larger numpy operations: this runs at 1 kHz). The damping task has
+        Jacobian I, so it adds ``c I`` to A and ``c (kp (q_rest - q) - kd v)`` to b directly.
+        :meth:`build_objective_reference` assembles the same system map by map, for tests.
+        """
+        g = self.gains
+        X = self._X
+        if command.y is not None:
+            # Augmented system X = sqrt(c) [T | r]: one product X^T X yields A and b together.
+            J = state.J
+            X[:3, :7] = J[:3]
+            X[3:, :7] = skew(-state.tcp_axis) @ J[3:]  # z_dot = -[z]x J_w v
+            v = state.v
+            Tv = X[:, :7] @ v
+            drift = np.concatenate(
+                [state.acc_drift[:3], axis_drift(state.acc_drift[3:], J[3:] @ v, state.tcp_axis)]
+            )
+            yd = command.yd if command.yd is not None else self._zero6
+            X[:, 7] = self._kp6 * (command.y - state.y) + self._kd6 * (yd - Tv) - drift
+            X *= self._sqrt_w6
+            G = X.T @ X
+            A = G[:7, :7] + self._diag
+            b = G[:7, 7] + self._damp_kd * state.v
+        else:
+            A = self._diag.copy()
+            b = self._damp_kd * state.v
+        if self._damp_kp:
+            b += self._damp_kp * (self.q_rest - state.q)
+        if command.q is not None:
+            qd = command.qd if command.qd is not None else self._zeros
+            c = g.joint.weight
+            A += c * self._eye
+            b += c * (g.joint.kp * (command.q - state.q) + g.joint.kd * (qd - state.v))
+        if self.col_map is not None:
+            terms = self.col_map.evaluate(state)
+            if terms.phi[0] > 0.0:
+                _accumulate(A, b, terms, g.col, self._zero1, self._zero1)
+        return Objective(A, b)
+
+    def build_objective_reference(self, state: RobotState, command: Command) -> Objective:
+        """The same normal equations as :meth:`build_objective`, one task map at a time."""
         g = self.gains
         n = self.robot.nv
         A = g.reg * np.eye(n)
@@ -154,8 +208,12 @@ class OperationalSpaceController:
         return solve_objective(self.build_objective(state, command))
 
     def torque(self, state: RobotState, command: Command) -> np.ndarray:
-        """Joint torques ``tau = M q_ddot* + h``, clipped to the limits, shape (7,) [N m]."""
-        tau = state.M @ self.accelerations(state, command) + state.h
+        """Joint torques ``tau = M q_ddot* + h``, clipped to the limits, shape (7,) [N m].
+
+        ``M q_ddot + h`` is evaluated by Pinocchio's RNEA in one pass (no mass matrix formed).
+        """
+        qdd = self.accelerations(state, command)
+        tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
         return np.minimum(np.maximum(tau, self._lo), self._hi)
 
 

@@ -16,15 +16,37 @@ _LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 def skew(w: np.ndarray) -> np.ndarray:
-    """Cross-product matrix: ``skew(w) @ x == w x x``, shape (3, 3)."""
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    """Cross-product matrix: ``skew(w) @ x == w x x``, shape (3, 3).
+
+    Scalar work is done on Python floats (``tolist``): indexing numpy arrays element by element
+    costs ~0.1 us per access, which matters at 1 kHz.
+    """
+    x, y, z = w.tolist()
+    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """``a x b`` for 3-vectors, without ``np.cross``'s ~20 us of overhead."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
+    ax, ay, az = a.tolist()
+    bx, by, bz = b.tolist()
+    return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
+
+
+def axis_drift(alpha: np.ndarray, omega: np.ndarray, z: np.ndarray) -> list[float]:
+    """Second derivative of a body-fixed unit axis at zero joint acceleration.
+
+    ``z_ddot = alpha x z + omega x (omega x z)`` with angular drift ``alpha = J_w_dot v`` and
+    angular velocity ``omega``; shape (3,) as a list of floats.
+    """
+    axx, ayy, azz = alpha.tolist()
+    wx, wy, wz = omega.tolist()
+    zx, zy, zz = z.tolist()
+    dx, dy, dz = wy * zz - wz * zy, wz * zx - wx * zz, wx * zy - wy * zx  # omega x z
+    return [
+        ayy * zz - azz * zy + wy * dz - wz * dy,
+        azz * zx - axx * zz + wz * dx - wx * dz,
+        axx * zy - ayy * zx + wx * dy - wy * dx,
+    ]
 
 
 class RobotState:
@@ -33,22 +55,16 @@ class RobotState:
     Attributes:
         q: joint positions, shape (7,) [rad].
         v: joint velocities, shape (7,) [rad/s].
-        M: joint-space mass matrix (full, symmetric), shape (7, 7) [kg m^2].
-        h: nonlinear effects C(q, v) v + g(q), shape (7,) [N m].
-        tcp_pos: TCP position in the world frame, shape (3,) [m].
-        tcp_axis: TCP z-axis in the world frame (unit), shape (3,).
+        y: the 6-D task state of the paper's methods, (TCP position [m], TCP z-axis), shape (6,).
+        tcp_pos: TCP position in the world frame, a view of ``y[:3]`` [m].
+        tcp_axis: TCP z-axis in the world frame (unit), a view of ``y[3:]``.
         J: TCP Jacobian, LOCAL_WORLD_ALIGNED, rows (linear, angular), shape (6, 7).
-        tcp_vel: TCP linear velocity, shape (3,) [m/s].
-        omega: TCP angular velocity, shape (3,) [rad/s].
         acc_drift: TCP classical acceleration at zero joint acceleration, rows (linear, angular),
             i.e. ``J_dot @ v`` (the term Eq. 5 needs when it maps q_ddot to task accelerations),
             shape (6,) [m/s^2, rad/s^2].
     """
 
-    __slots__ = (
-        "robot", "data", "q", "v", "M", "h", "tcp_pos", "tcp_axis", "J", "tcp_vel", "omega",
-        "acc_drift",
-    )
+    __slots__ = ("robot", "data", "q", "v", "y", "tcp_pos", "tcp_axis", "J", "acc_drift")
 
     def __init__(self, robot: RobotModel, data: pin.Data, q: np.ndarray, v: np.ndarray) -> None:
         model = robot.model
@@ -57,26 +73,35 @@ class RobotState:
         self.data = data
         self.q = q
         self.v = v
-        pin.computeAllTerms(model, data, q, v)
-        M = data.M
-        self.M = np.triu(M) + np.triu(M, 1).T
-        self.h = data.nle.copy()
-        pin.forwardKinematics(model, data, q, v, np.zeros_like(v))
+        pin.forwardKinematics(model, data, q, v, 0.0 * v)
+        pin.computeJointJacobians(model, data)
         oMf = pin.updateFramePlacement(model, data, fid)
-        self.tcp_pos = oMf.translation.copy()
-        self.tcp_axis = oMf.rotation[:, 2].copy()
+        self.y = np.concatenate([oMf.translation, oMf.rotation[:, 2]])  # copies out of data
+        self.tcp_pos = self.y[:3]
+        self.tcp_axis = self.y[3:]
         self.J = pin.getFrameJacobian(model, data, fid, _LWA)
-        twist = self.J @ v
-        self.tcp_vel = twist[:3]
-        self.omega = twist[3:]
         self.acc_drift = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
 
     @property
-    def y(self) -> np.ndarray:
-        """The 6-D task state of the paper's methods: (TCP position [m], TCP z-axis), shape (6,)."""
-        return np.concatenate([self.tcp_pos, self.tcp_axis])
+    def tcp_vel(self) -> np.ndarray:
+        """TCP linear velocity, shape (3,) [m/s]."""
+        return self.J[:3] @ self.v
+
+    @property
+    def omega(self) -> np.ndarray:
+        """TCP angular velocity, shape (3,) [rad/s]."""
+        return self.J[3:] @ self.v
 
     @property
     def yd(self) -> np.ndarray:
         """Time derivative of :attr:`y`: (TCP velocity [m/s], omega x z [1/s]), shape (6,)."""
         return np.concatenate([self.tcp_vel, cross(self.omega, self.tcp_axis)])
+
+    def mass_matrix(self) -> np.ndarray:
+        """Joint-space mass matrix M(q) (full, symmetric), shape (7, 7) [kg m^2]."""
+        M = pin.crba(self.robot.model, self.data, self.q)
+        return np.triu(M) + np.triu(M, 1).T
+
+    def bias_forces(self) -> np.ndarray:
+        """Nonlinear effects h(q, v) = C(q, v) v + g(q), shape (7,) [N m]."""
+        return pin.nonLinearEffects(self.robot.model, self.data, self.q, self.v).copy()

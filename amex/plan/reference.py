@@ -37,3 +37,33 @@ class ReferencePlan:
     def times(self) -> np.ndarray:
         """Sample times, shape (N + 1,) [s]."""
         return np.arange(len(self.q)) * self.dt
+
+
+@dataclass
+class PlanConfig:
+    """How the reference plan is computed (DESIGN: 400 steps over 4 s, Gauss-Newton, <= 20 its).
+
+    Attributes:
+        duration: T_ref [s].
+        dt: knot spacing [s].
+        max_iterations: Gauss-Newton iterations (original: 20).
+        acceleration: weight of the squared joint accelerations.
+        final_position: weight of the final TCP position error (original 1e4).
+        final_velocity: weight of the final joint velocity (original 1e3).
+        final_axis: weight of the final TCP z-axis error (original 1e4).
+        final_axis_velocity: weight of the final TCP z-axis velocity (original 1e3).
+    """
+
+    duration: float = 4.0
+    dt: float = 0.01
+    max_iterations: int = 20
+    acceleration: float = 1.0
+    final_position: float = 1e4
+    final_velocity: float = 1e3
+    final_axis: float = 1e4
+    final_axis_velocity: float = 1e3
+
+    @property
+    def steps(self) -> int:
+        """Number of knots after the start, ``duration / dt``."""
+        return int(round(self.duration / self.dt))

@@ -1,0 +1,160 @@
+"""``make bench``: medians of the costs that matter, printed as a table.
+
+* inner step: one 1 kHz step (robot state, OSC solve, inverse dynamics, mj_step), median over a
+  Task-0 episode's steps, measured inside a real episode loop;
+* Task-0 episode: wall time of a whole episode with ``track`` (and its real-time factor);
+* reference plan: cold solve, and a disk-cache hit;
+* each registered method's own outer step (``Method.step``), median over a Task-3 episode.
+
+Timings use ``time.perf_counter_ns``; nothing here asserts a time (tests never time things).
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import statistics  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
+
+from amex.config import RunConfig  # noqa: E402
+from amex.control.collision import CollisionModel  # noqa: E402
+from amex.control.osc import OperationalSpaceController  # noqa: E402
+from amex.control.state import RobotState  # noqa: E402
+from amex.episode import Simulation  # noqa: E402
+from amex.methods import METHODS  # noqa: E402
+from amex.plan.cache import reference_plan, solve_reference  # noqa: E402
+from amex.runner import prepare, run_one  # noqa: E402
+from amex.scenario import make_scenario  # noqa: E402
+
+
+def _config(method: str, task: int = 0) -> RunConfig:
+    config = RunConfig(task=task)
+    config.method = METHODS[method].config_class()
+    return config
+
+
+def bench_inner_step(config: RunConfig, steps: int = 4000) -> list[float]:
+    """Per-step wall times [s] of the inner loop following the reference plan in Task 0."""
+    context = prepare(config)
+    robot, plan = context.robot, context.plan
+    scenario = make_scenario(config.scenario, 3, 0, 0, plan.y[0, :3], plan.duration)
+    sim = Simulation(robot, scenario, config.inner_hz)
+    collision = CollisionModel(robot, scenario.obstacle_radii)
+    osc = OperationalSpaceController(robot, config.gains(), collision)
+    method = METHODS["track"].from_plan(plan, METHODS["track"].config_class(), 0.01, robot)
+    pdata = robot.model.createData()
+    from amex.methods.base import Observation
+
+    times = []
+    command = None
+    for k in range(steps):
+        tic = time.perf_counter_ns()
+        state = RobotState(robot, pdata, sim.data.qpos.copy(), sim.data.qvel.copy())
+        if k % 10 == 0:
+            obs = Observation(k * 1e-3, state.q, state.v, state.y, state.yd, plan.goal)
+            command = method.step(obs)
+        tau = osc.torque(state, command)
+        sim.data.qfrc_applied[:] = tau
+        mujoco.mj_step(sim.model, sim.data)
+        times.append((time.perf_counter_ns() - tic) * 1e-9)
+    return times
+
+
+def bench_episode(config: RunConfig, repeats: int = 5) -> list[float]:
+    """Wall times [s] of whole Task-0 episodes."""
+    context = prepare(config)
+    times = []
+    for _ in range(repeats):
+        tic = time.perf_counter()
+        result = run_one(config, context, 0)
+        times.append(time.perf_counter() - tic)
+    return times + [result.final_time]
+
+
+def bench_plan(config: RunConfig, repeats: int = 3) -> tuple[list[float], list[float]]:
+    """Cold solve times [s] and cache-hit times [s] of the reference plan."""
+    context = prepare(config)
+    goal = np.asarray(config.scenario.reference_goal, dtype=float)
+    axis = np.asarray(config.scenario.goal_axis, dtype=float)
+    cold = []
+    for _ in range(repeats):
+        tic = time.perf_counter()
+        solve_reference(context.robot, config.plan, goal, axis)
+        cold.append(time.perf_counter() - tic)
+    hits = []
+    with tempfile.TemporaryDirectory() as tmp:
+        reference_plan(context.robot, config.plan, goal, axis, Path(tmp))
+        for _ in range(20):
+            tic = time.perf_counter()
+            reference_plan(context.robot, config.plan, goal, axis, Path(tmp))
+            hits.append(time.perf_counter() - tic)
+    return cold, hits
+
+
+def bench_method_steps(name: str, task: int = 3, env: int = 0) -> list[float]:
+    """Per-step wall times [s] of ``name``'s outer step over one episode of ``task``."""
+    config = _config(name, task)
+    context = prepare(config)
+    method_cls = METHODS[name]
+    method = method_cls.from_plan(context.plan, config.method, 0.01, context.robot)
+    times: list[float] = []
+    original = method.step
+
+    def timed(obs):  # same measurement as the episode loop, kept per step
+        tic = time.perf_counter_ns()
+        out = original(obs)
+        times.append((time.perf_counter_ns() - tic) * 1e-9)
+        return out
+
+    method.step = timed  # type: ignore[method-assign]
+    scenario = make_scenario(
+        config.scenario, task, config.seed, env, context.plan.y[0, :3], context.plan.duration
+    )
+    from amex.episode import run_episode
+
+    run_episode(context.robot, method, scenario, config.gains(), config.loop)
+    return times
+
+
+def _us(x: float) -> str:
+    return f"{x * 1e6:9.1f} us"
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the benchmark table."""
+    parser = argparse.ArgumentParser(prog="amex-bench", description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    args = parser.parse_args(argv)
+    config = _config("track")
+    inner = bench_inner_step(config, 2000 if args.quick else 6000)
+    print(f"inner step (state + OSC + mj_step), median of {len(inner)}: {_us(np.median(inner))}")
+    episode = bench_episode(config, 2 if args.quick else 5)
+    final_time, walls = episode[-1], episode[:-1]
+    wall = statistics.median(walls)
+    print(
+        f"Task-0 episode ({final_time:.2f} s simulated), median wall: {wall:9.3f} s  "
+        f"(real-time factor {final_time / wall:.1f})"
+    )
+    cold, hits = bench_plan(config, 1 if args.quick else 3)
+    print(f"reference plan, cold solve, median of {len(cold)}: {statistics.median(cold):9.3f} s")
+    print(f"reference plan, cache hit, median of {len(hits)}: {statistics.median(hits) * 1e3:9.2f} ms")
+    for name in sorted(METHODS):
+        steps = bench_method_steps(name)
+        p95 = float(np.percentile(steps, 95))
+        print(
+            f"method {name:<7} outer step on Task 3, median of {len(steps)}: "
+            f"{_us(np.median(steps))}  (mean {_us(np.mean(steps))}, p95 {_us(p95)})"
+        )
+
+
+if __name__ == "__main__":
+    main()

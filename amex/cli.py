@@ -1,0 +1,203 @@
+"""Command-line entry points: ``amex-run`` (Hydra) and, later, ``amex-log``.
+
+``amex-run`` first composes and validates every configuration the command line asks for (each
+combination of a ``-m`` sweep) with Hydra's compose API; any bad value gets one line on stderr and
+exit code 2 before Hydra creates a run directory. Only then does Hydra run the job(s). This is the
+only module that imports Hydra or OmegaConf. ``AMEX_DEBUG=1`` shows tracebacks.
+"""
+
+from __future__ import annotations
+
+import os
+
+# One BLAS/OpenMP thread per process: episodes are tiny linear algebra, and sweeps run one job
+# per core. Set before numpy is imported anywhere.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import itertools  # noqa: E402
+import re  # noqa: E402
+import sys  # noqa: E402
+from dataclasses import fields  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Any  # noqa: E402
+
+CONF_DIR = str(Path(__file__).resolve().parent.parent / "conf")
+PROG = "amex-run"
+
+
+class UsageError(Exception):
+    """A bad command line; the message is the one line shown to the user."""
+
+
+def _register_schemas() -> None:
+    from hydra.core.config_store import ConfigStore
+
+    from amex.config import RunConfig
+    from amex.methods import METHODS
+
+    cs = ConfigStore.instance()
+    cs.store(name="run_schema", node=RunConfig)
+    for name, cls in METHODS.items():
+        cs.store(group="method", name=f"schema_{name}", node=cls.config_class)
+
+
+def _top_level_keys() -> list[str]:
+    from amex.config import RunConfig
+
+    return sorted(f.name for f in fields(RunConfig))
+
+
+def _explain(error: Exception) -> str:
+    """Turn a Hydra/OmegaConf composition error into one line naming value and choices."""
+    from amex.methods import METHODS
+    from amex.scenario import TASKS
+
+    text = str(error)
+    m = re.search(r"Could not find '(\w+)/([^']*)'", text)
+    if m:
+        group, value = m.groups()
+        if group == "method":
+            return f"invalid method={value!r}; valid: {', '.join(sorted(METHODS))}"
+        return f"invalid {group}={value!r}; see `{PROG} --help` for the options of {group}"
+    m = re.search(r"Key '([^']+)' is not in struct", text) or re.search(
+        r"Could not override '([^']+)'", text
+    )
+    if m:
+        return f"unknown config key {m.group(1)!r}; valid keys: {', '.join(_top_level_keys())}"
+    m = re.search(r"Value '([^']*)' (?:of type '\w+' )?could not be converted to (\w+)", text)
+    if m:
+        key = re.search(r"full_key: (\S+)", text)
+        name = key.group(1) if key else "value"
+        if name == "task":
+            return f"invalid task={m.group(1)!r}; valid: {', '.join(map(str, TASKS))}"
+        return f"invalid {name}={m.group(1)!r}; valid: a value of type {m.group(2)}"
+    first = text.strip().splitlines()[0] if text.strip() else type(error).__name__
+    return first
+
+
+def _sweep_combinations(overrides: list[str]) -> list[list[str]]:
+    """Expand ``-m`` sweep overrides into the list of single-run override lists."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except Exception as e:  # Hydra's OverrideParseException and friends
+        raise UsageError(f"invalid override: {_explain(e)}") from e
+    choices: list[list[str]] = []
+    for o in parsed:
+        if o.is_hydra_override():
+            continue
+        key = o.key_or_group
+        prefix = "+" if o.input_line.startswith("+") else ""
+        if o.is_sweep_override():
+            choices.append([f"{prefix}{key}={v}" for v in o.sweep_string_iterator()])
+        else:
+            choices.append([o.input_line])
+    return [list(c) for c in itertools.product(*choices)] if choices else [[]]
+
+
+def load_config(overrides: list[str]) -> Any:
+    """Compose ``conf/config.yaml`` with ``overrides`` and return a validated ``RunConfig``."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from omegaconf import OmegaConf
+
+    from amex.config import validate
+    from amex.errors import ConfigError
+
+    _register_schemas()
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            cfg = compose(config_name="config", overrides=overrides)
+        config = OmegaConf.to_object(cfg)
+    except ConfigError:
+        raise
+    except Exception as e:  # Hydra and OmegaConf raise many types for bad input
+        raise UsageError(_explain(e)) from e
+    finally:
+        GlobalHydra.instance().clear()
+    validate(config)  # type: ignore[arg-type]
+    return config
+
+
+def _validate_command_line(argv: list[str]) -> None:
+    """Compose and validate every run the command line describes, or raise :class:`UsageError`."""
+    from amex.errors import ConfigError
+
+    flags_with_value = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd"}
+    overrides: list[str] = []
+    skip = False
+    for arg in argv:
+        if skip:
+            skip = False
+            continue
+        if arg in flags_with_value:
+            skip = True
+            continue
+        if arg.startswith("-"):
+            continue
+        overrides.append(arg)
+    for combo in _sweep_combinations(overrides):
+        try:
+            load_config(combo)
+        except ConfigError as e:
+            raise UsageError(str(e)) from e
+
+
+def _fail(message: str) -> None:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def _task(cfg: Any) -> None:
+    """The Hydra job: one run into Hydra's output directory, with a progress bar."""
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import OmegaConf
+    from tqdm import tqdm
+    from tqdm.contrib.logging import logging_redirect_tqdm
+
+    from amex.runner import run
+
+    config = OmegaConf.to_object(cfg)
+    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    label = f"task {config.task} {config.method.name}"  # type: ignore[attr-defined]
+    episodes = config.episodes  # type: ignore[attr-defined]
+    with logging_redirect_tqdm(), tqdm(total=episodes, desc=label, unit="ep") as bar:
+        successes = 0
+
+        def progress(env: int, result: Any) -> None:
+            nonlocal successes
+            successes += int(result.success)
+            bar.set_postfix(success=f"{successes}/{env + 1}")
+            bar.update(1)
+
+        summary = run(config, run_dir, progress)  # type: ignore[arg-type]
+    s = summary["success"]["mean"]
+    t = summary["final_time"]
+    print(
+        f"success {s:.3f}  final time {t['mean']:.2f} +- {t['two_std']:.2f} s  "
+        f"({summary['failures']} failures)",
+        file=sys.stderr,
+    )
+    print(run_dir, flush=True)
+
+
+def run_main() -> None:
+    """``amex-run``: validate the command line, then hand it to Hydra."""
+    argv = sys.argv[1:]
+    debug = os.environ.get("AMEX_DEBUG") == "1"
+    informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
+    if not informational.intersection(argv):
+        try:
+            _validate_command_line(argv)
+        except UsageError as e:
+            if debug:
+                raise
+            _fail(str(e))
+    import hydra
+
+    _register_schemas()
+    main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(_task)
+    main()
