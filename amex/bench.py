@@ -27,7 +27,7 @@ import numpy as np  # noqa: E402
 
 from amex.config import RunConfig  # noqa: E402
 from amex.control.collision import CollisionModel  # noqa: E402
-from amex.control.osc import OperationalSpaceController  # noqa: E402
+from amex.control.osc import Command, OperationalSpaceController  # noqa: E402
 from amex.control.state import RobotState  # noqa: E402
 from amex.episode import Simulation  # noqa: E402
 from amex.methods import METHODS  # noqa: E402
@@ -55,7 +55,7 @@ def bench_inner_step(config: RunConfig, steps: int = 4000) -> list[float]:
     from amex.methods.base import Observation
 
     times = []
-    command = None
+    command = Command()
     for k in range(steps):
         tic = time.perf_counter_ns()
         state = RobotState(robot, pdata, sim.data.qpos.copy(), sim.data.qvel.copy())
@@ -125,8 +125,8 @@ def bench_method_steps(name: str, task: int = 3, env: int = 0) -> list[float]:
     return times
 
 
-def _us(x: float) -> str:
-    return f"{x * 1e6:9.1f} us"
+def _us(x: float | np.floating) -> str:
+    return f"{float(x) * 1e6:9.1f} us"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -146,7 +146,8 @@ def main(argv: list[str] | None = None) -> None:
     )
     cold, hits = bench_plan(config, 1 if args.quick else 3)
     print(f"reference plan, cold solve, median of {len(cold)}: {statistics.median(cold):9.3f} s")
-    print(f"reference plan, cache hit, median of {len(hits)}: {statistics.median(hits) * 1e3:9.2f} ms")
+    hit = statistics.median(hits) * 1e3
+    print(f"reference plan, cache hit, median of {len(hits)}: {hit:9.2f} ms")
     for name in sorted(METHODS):
         steps = bench_method_steps(name)
         p95 = float(np.percentile(steps, 95))

@@ -53,7 +53,12 @@ def _explain(error: Exception) -> str:
     from amex.methods import METHODS
     from amex.scenario import TASKS
 
-    text = str(error)
+    parts: list[str] = []
+    seen: Exception | None = error
+    while seen is not None and len(parts) < 10:  # the whole cause chain: Hydra wraps OmegaConf
+        parts.append(str(seen))
+        seen = seen.__cause__ or seen.__context__  # type: ignore[assignment]
+    text = "\n".join(parts)
     m = re.search(r"Could not find '(\w+)/([^']*)'", text)
     if m:
         group, value = m.groups()
@@ -67,7 +72,7 @@ def _explain(error: Exception) -> str:
         return f"unknown config key {m.group(1)!r}; valid keys: {', '.join(_top_level_keys())}"
     m = re.search(r"Value '([^']*)' (?:of type '\w+' )?could not be converted to (\w+)", text)
     if m:
-        key = re.search(r"full_key: (\S+)", text)
+        key = re.search(r"full_key: (\S+)", text) or re.search(r"override ([\w.]+)=", text)
         name = key.group(1) if key else "value"
         if name == "task":
             return f"invalid task={m.group(1)!r}; valid: {', '.join(map(str, TASKS))}"
@@ -89,11 +94,12 @@ def _sweep_combinations(overrides: list[str]) -> list[list[str]]:
         if o.is_hydra_override():
             continue
         key = o.key_or_group
-        prefix = "+" if o.input_line.startswith("+") else ""
+        line = o.input_line or f"{key}={o.get_value_element_as_str()}"
+        prefix = "+" if line.startswith("+") else ""
         if o.is_sweep_override():
             choices.append([f"{prefix}{key}={v}" for v in o.sweep_string_iterator()])
         else:
-            choices.append([o.input_line])
+            choices.append([line])
     return [list(c) for c in itertools.product(*choices)] if choices else [[]]
 
 
@@ -111,14 +117,14 @@ def load_config(overrides: list[str]) -> Any:
     try:
         with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
             cfg = compose(config_name="config", overrides=overrides)
-        config = OmegaConf.to_object(cfg)
+        config: Any = OmegaConf.to_object(cfg)
     except ConfigError:
         raise
     except Exception as e:  # Hydra and OmegaConf raise many types for bad input
         raise UsageError(_explain(e)) from e
     finally:
         GlobalHydra.instance().clear()
-    validate(config)  # type: ignore[arg-type]
+    validate(config)
     return config
 
 
@@ -160,10 +166,10 @@ def _task(cfg: Any) -> None:
 
     from amex.runner import run
 
-    config = OmegaConf.to_object(cfg)
+    config: Any = OmegaConf.to_object(cfg)
     run_dir = Path(HydraConfig.get().runtime.output_dir)
-    label = f"task {config.task} {config.method.name}"  # type: ignore[attr-defined]
-    episodes = config.episodes  # type: ignore[attr-defined]
+    label = f"task {config.task} {config.method.name}"
+    episodes = config.episodes
     with logging_redirect_tqdm(), tqdm(total=episodes, desc=label, unit="ep") as bar:
         successes = 0
 
@@ -173,7 +179,7 @@ def _task(cfg: Any) -> None:
             bar.set_postfix(success=f"{successes}/{env + 1}")
             bar.update(1)
 
-        summary = run(config, run_dir, progress)  # type: ignore[arg-type]
+        summary = run(config, run_dir, progress)
     s = summary["success"]["mean"]
     t = summary["final_time"]
     print(

@@ -127,8 +127,8 @@ def validate(config: RunConfig) -> None:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
     if config.robot.name not in ROBOTS:
         raise ConfigError.invalid("robot", config.robot.name, ROBOTS)
-    config.loop.validate()
     config.scenario.validate()
+    config.loop.validate()
     plan = config.plan
     if not (plan.dt > 0 and plan.duration > 0):
         raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")

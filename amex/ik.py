@@ -53,8 +53,8 @@ def solve_ik(
     goal_pos = np.asarray(goal_pos, dtype=float)
     goal_axis = np.asarray(goal_axis, dtype=float)
     e = np.zeros(6)
-    it = 0
-    for it in range(1, max_iterations + 1):
+    iterations = 0
+    for iterations in range(1, max_iterations + 1):  # noqa: B007 (reported below)
         pin.forwardKinematics(model, data, q)
         M = pin.updateFramePlacement(model, data, fid)
         z = M.rotation[:, 2]
@@ -71,5 +71,5 @@ def solve_ik(
         q=q,
         position_error=float(np.linalg.norm(goal_pos - M.translation)),
         axis_error=float(np.linalg.norm(goal_axis - M.rotation[:, 2])),
-        iterations=it,
+        iterations=iterations,
     )

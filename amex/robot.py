@@ -121,18 +121,18 @@ class RobotModel:
         return int(self.model.nv)
 
     def tcp_pose(self, q: np.ndarray) -> pin.SE3:
-        """TCP pose in the world frame at configuration ``q`` (allocates; not for the 1 kHz loop)."""
+        """TCP pose in the world frame at ``q`` (allocates; not for the 1 kHz loop)."""
         data = self.model.createData()
         pin.framesForwardKinematics(self.model, data, q)
         return data.oMf[self.tcp_frame_id].copy()
 
     def task_position(self, q: np.ndarray) -> np.ndarray:
-        """The 6-D task state ``y = (p_tcp, z_tcp)``: TCP position [m] and z-axis (unit), shape (6,)."""
+        """The 6-D task state ``y = (p_tcp, z_tcp)``: TCP position [m], z-axis; shape (6,)."""
         M = self.tcp_pose(q)
         return np.concatenate([M.translation, M.rotation[:, 2]])
 
     def build_mujoco(self, n_obstacles: int = 0, timestep: float = 1e-3) -> mujoco.MjModel:
-        """Compile the MuJoCo model with ``n_obstacles`` mocap spheres (see :func:`_mujoco_model`)."""
+        """Compile the MuJoCo model with ``n_obstacles`` mocap spheres (:func:`_mujoco_model`)."""
         return _mujoco_model(self.urdf_path, self._tcp_in_link7(), n_obstacles, timestep)
 
     def _tcp_in_link7(self) -> tuple[float, ...]:
@@ -178,11 +178,12 @@ def _mujoco_model(
 ) -> mujoco.MjModel:
     """Compile the Panda for MuJoCo, fixed as DESIGN.md records.
 
-    The finger ``<mimic>`` equality and finger joints are removed (fingers are welded to the hand, as
-    in the reduced Pinocchio model); URDF joint damping is zeroed (Pinocchio's model has none); arm
-    geoms get ``contype=1, conaffinity=0`` so the arm never collides with itself; obstacles are mocap
-    spheres ``obstacle_<k>`` with ``contype=0, conaffinity=1`` so they touch only the arm. The arm is
-    torque controlled through ``qfrc_applied``; a ``tcp`` site marks the tool centre point.
+    The finger ``<mimic>`` equality and finger joints are removed (fingers are welded to the
+    hand, as in the reduced Pinocchio model); URDF joint damping is zeroed (Pinocchio's model has
+    none); arm geoms get ``contype=1, conaffinity=0`` so the arm never collides with itself;
+    obstacles are mocap spheres ``obstacle_<k>`` with ``contype=0, conaffinity=1`` so they touch
+    only the arm. The arm is torque controlled through ``qfrc_applied``; a ``tcp`` site marks the
+    tool centre point.
     """
     spec = mujoco.MjSpec.from_file(urdf)
     for eq in list(spec.equalities):

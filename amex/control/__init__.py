@@ -1,4 +1,4 @@
-"""The 1 kHz inner loop: robot state, task maps, collision distances and operational-space control."""
+"""The 1 kHz inner loop: robot state, task maps, collision distances, operational-space control."""
 
 from amex.control.osc import PD, Command, OperationalSpaceController, OSCGains
 

@@ -44,7 +44,7 @@ class CollisionModel:
         radii: radius of each obstacle sphere [m]; the number of obstacles is ``len(radii)``.
     """
 
-    def __init__(self, robot: RobotModel, radii: Sequence[float]) -> None:
+    def __init__(self, robot: RobotModel, radii: Sequence[float] | np.ndarray) -> None:
         self.robot = robot
         self.radii = tuple(float(r) for r in radii)
         gm = pin.GeometryModel()

@@ -218,7 +218,7 @@ class OperationalSpaceController:
 
 
 def solve_objective(objective: Objective) -> np.ndarray:
-    """Solve ``A x = b`` by Cholesky (LAPACK ``dposv``); raise :class:`SolverError` if A is not SPD."""
+    """Solve ``A x = b`` by Cholesky (LAPACK ``dposv``); :class:`SolverError` if A is not SPD."""
     _, x, info = dposv(objective.A, objective.b)
     if info != 0:
         raise SolverError(f"OSC normal equations not positive definite (info={info})", objective)

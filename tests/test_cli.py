@@ -1,0 +1,91 @@
+"""End-to-end tests of ``amex-run``: real Hydra, real MuJoCo, small episode counts."""
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from amex.metrics import COLUMNS, TIMING_COLUMNS
+
+AMEX_RUN = str(Path(sys.executable).parent / "amex-run")
+
+
+def _run(args, cwd):
+    env = dict(os.environ)
+    env.pop("AMEX_DEBUG", None)
+    return subprocess.run(
+        [AMEX_RUN, *args], cwd=cwd, capture_output=True, text=True, env=env, timeout=600
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["task=9"], "task=9"),
+        (["task=abc"], "task='abc'"),
+        (["method=nope"], "method='nope'"),
+        (["episodes=0"], "episodes=0"),
+        (["seed=-1"], "seed=-1"),
+        (["inner_hz=150", "outer_hz=100"], "inner_hz=150"),
+        (["max_time=-1"], "max_time=-1"),
+        (["foo=1"], "'foo'"),
+        (["-m", "task=1,7"], "task=7"),
+    ],
+)
+def test_bad_input_gets_one_line_exit_2_and_no_run_directory(tmp_path, args, needle):
+    proc = _run(args, tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert needle in lines[0] and "valid" in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "runs").exists() and not (tmp_path / "outputs").exists()
+
+
+def _read_rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_run_writes_episodes_and_summary_and_prints_the_directory(tmp_path):
+    out = tmp_path / "run"
+    proc = _run(
+        ["task=0", "method=track", "episodes=2", "seed=3", f"hydra.run.dir={out}"], tmp_path
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip().splitlines()[-1] == str(out)
+    rows = _read_rows(out / "episodes.csv")
+    assert tuple(rows[0].keys()) == COLUMNS
+    assert [r["env"] for r in rows] == ["0", "1"]
+    assert all(r["success"] == "1" and r["seed"] == "3" for r in rows)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["episodes"] == 2 and summary["success"]["mean"] == 1.0
+
+
+def test_same_config_and_seed_give_identical_episodes_bit_for_bit(tmp_path):
+    tables = []
+    for name in ("a", "b"):
+        out = tmp_path / name
+        proc = _run(
+            ["task=2", "method=track", "episodes=2", "seed=5", f"hydra.run.dir={out}"], tmp_path
+        )
+        assert proc.returncode == 0, proc.stderr
+        rows = _read_rows(out / "episodes.csv")
+        tables.append([{k: v for k, v in r.items() if k not in TIMING_COLUMNS} for r in rows])
+    assert tables[0] == tables[1]
+
+
+def test_multirun_sweeps_tasks(tmp_path):
+    sweep = tmp_path / "sweep"
+    proc = _run(
+        ["-m", "task=0,1", "method=track", "episodes=1", "max_time=2", f"hydra.sweep.dir={sweep}"],
+        tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    csvs = sorted(sweep.glob("*/episodes.csv"))
+    assert len(csvs) == 2
+    assert {_read_rows(p)[0]["task"] for p in csvs} == {"0", "1"}

@@ -1,0 +1,128 @@
+import mujoco
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from amex.control.collision import CollisionModel
+from amex.control.osc import Command, OperationalSpaceController, OSCGains
+from amex.control.state import RobotState
+from amex.control.tasks import AxisMap, CollisionMap, PositionMap
+
+EPS = 1e-6
+
+
+def _state(robot, q, v=None):
+    v = np.zeros(7) if v is None else v
+    return RobotState(robot, robot.model.createData(), q, v)
+
+
+def _fd_jacobian(robot, f, q):
+    cols = []
+    for i in range(7):
+        dq = np.zeros(7)
+        dq[i] = EPS
+        cols.append(
+            (f(pin.integrate(robot.model, q, dq)) - f(pin.integrate(robot.model, q, -dq)))
+            / (2 * EPS)
+        )
+    return np.stack(cols, axis=1)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+@pytest.mark.parametrize("task_map", [PositionMap(), AxisMap()], ids=["pos", "dir"])
+def test_task_jacobian_matches_finite_differences(robot, seed, task_map):
+    rng = np.random.default_rng(seed)
+    q = robot.q0 + rng.normal(scale=0.3, size=7)
+    J = task_map.evaluate(_state(robot, q)).J
+    J_fd = _fd_jacobian(robot, lambda x: task_map.evaluate(_state(robot, x)).phi.copy(), q)
+    assert np.abs(J - J_fd).max() < 1e-5
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("task_map", [PositionMap(), AxisMap()], ids=["pos", "dir"])
+def test_task_drift_is_the_time_derivative_of_jacobian_times_velocity(robot, seed, task_map):
+    rng = np.random.default_rng(seed)
+    q = robot.q0 + rng.normal(scale=0.3, size=7)
+    v = rng.normal(size=7)
+    drift = task_map.evaluate(_state(robot, q, v)).drift
+    h = 1e-6
+    # along q(t) = q + t v (zero joint acceleration): phi_ddot = J_dot v
+    plus = task_map.evaluate(_state(robot, pin.integrate(robot.model, q, h * v), v)).phid
+    minus = task_map.evaluate(_state(robot, pin.integrate(robot.model, q, -h * v), v)).phid
+    assert np.abs(drift - (plus - minus) / (2 * h)).max() < 1e-5
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_collision_jacobian_matches_finite_differences(robot, seed):
+    rng = np.random.default_rng(seed)
+    q = robot.q0 + rng.normal(scale=0.2, size=7)
+    tcp = robot.tcp_pose(q).translation
+    collision = CollisionModel(robot, [0.02])
+    # obstacle just below the hand, inside the margin of the fingers / hand capsule
+    collision.set_obstacles((tcp + np.array([0.0, 0.0, -0.045 - 0.01 * seed]))[None])
+    cmap = CollisionMap(collision, margin=0.05)
+    terms = cmap.evaluate(_state(robot, q))
+    assert terms.phi[0] > 0
+    J_fd = _fd_jacobian(robot, lambda x: cmap.evaluate(_state(robot, x)).phi.copy(), q)
+    assert np.abs(terms.J - J_fd).max() < 1e-5
+
+
+def test_fused_objective_equals_task_by_task_objective(robot):
+    rng = np.random.default_rng(5)
+    collision = CollisionModel(robot, [0.02])
+    q = robot.q0 + rng.normal(scale=0.2, size=7)
+    tcp = robot.tcp_pose(q).translation
+    collision.set_obstacles((tcp + np.array([0.0, 0.0, -0.05]))[None])
+    osc = OperationalSpaceController(robot, OSCGains(), collision)
+    state = _state(robot, q, rng.normal(size=7))
+    command = Command(
+        y=state.y + rng.normal(scale=0.01, size=6),
+        yd=rng.normal(size=6),
+        q=q + 0.1,
+        qd=rng.normal(size=7),
+    )
+    fast = osc.build_objective(state, command)
+    slow = osc.build_objective_reference(state, command)
+    assert np.allclose(fast.A, slow.A, atol=1e-10)
+    assert np.allclose(fast.b, slow.b, atol=1e-10)
+
+
+def test_at_rest_on_target_the_controller_only_compensates_gravity(robot):
+    osc = OperationalSpaceController(robot, OSCGains())
+    state = _state(robot, robot.q0.copy())
+    command = Command(y=state.y.copy(), yd=np.zeros(6))
+    assert np.abs(osc.accelerations(state, command)).max() < 1e-9
+    tau = osc.torque(state, command)
+    assert np.allclose(tau, state.bias_forces(), atol=1e-9)
+
+
+def test_controller_drives_tcp_to_a_nearby_target_in_mujoco(robot):
+    from amex.control.osc import PD
+
+    gains = OSCGains(pos=PD(400.0, 40.0, 1.0), dir=PD(400.0, 40.0, 0.5))
+    osc = OperationalSpaceController(robot, gains)
+    model = robot.build_mujoco(0)
+    data = mujoco.MjData(model)
+    data.qpos[:] = robot.q0
+    pdata = robot.model.createData()
+    target = robot.task_position(robot.q0)
+    target[:3] += [0.05, -0.04, 0.03]
+    errors = []
+    for _ in range(1500):
+        state = RobotState(robot, pdata, data.qpos.copy(), data.qvel.copy())
+        errors.append(np.linalg.norm(state.tcp_pos - target[:3]))
+        data.qfrc_applied[:] = osc.torque(state, Command(y=target, yd=np.zeros(6)))
+        mujoco.mj_step(model, data)
+    assert errors[500] < errors[0] and errors[-1] < 1e-3
+
+
+def test_torques_are_clipped_to_the_limits(robot):
+    from amex.control.osc import PD
+
+    osc = OperationalSpaceController(robot, OSCGains(pos=PD(1e6, 0.0, 1.0)))
+    state = _state(robot, robot.q0.copy())
+    target = state.y.copy()
+    target[:3] += 0.5
+    tau = osc.torque(state, Command(y=target))
+    assert np.all(np.abs(tau) <= robot.torque_limit + 1e-12)
+    assert np.any(np.isclose(np.abs(tau), robot.torque_limit))
