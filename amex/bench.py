@@ -46,7 +46,7 @@ def bench_inner_step(config: RunConfig, steps: int = 4000) -> list[float]:
     """Per-step wall times [s] of the inner loop following the reference plan in Task 0."""
     context = prepare(config)
     robot, plan = context.robot, context.plan
-    scenario = make_scenario(config.scenario, 3, 0, 0, plan.y[0, :3], plan.duration)
+    scenario = make_scenario(config.scenario, 0, 0, 0, plan.y[0, :3], plan.duration)
     sim = Simulation(robot, scenario, config.inner_hz)
     collision = CollisionModel(robot, scenario.obstacle_radii)
     osc = OperationalSpaceController(robot, config.gains(), collision)

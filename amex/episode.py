@@ -164,6 +164,8 @@ def run_episode(
     if collision is not None:
         collision.set_obstacles(obstacles)
 
+    goal = scenario.goal_at(0.0)
+    goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
     compute_times: list[float] = []
     sum_sq_acc = 0.0
     collided = False
@@ -178,7 +180,8 @@ def run_episode(
             q = mjd.qpos.copy()
             v = mjd.qvel.copy()
             state = RobotState(robot, pdata, q, v)
-            goal = scenario.goal_at(t)
+            if t <= goal_moves_until:
+                goal = scenario.goal_at(t)
             diff = state.tcp_pos - goal
             distance = math.sqrt(diff @ diff)
             if distance <= loop.stop_radius:
@@ -214,9 +217,11 @@ def run_episode(
             sum_sq_acc += float(qacc @ qacc)
             if mjd.ncon:
                 collided = True
-            if recorder is not None and k % substeps == 0:
-                recorder.record(StepRecord(t, state, obs, command, method.internals(), tau, qacc))
-            _check_simulation(mjd, speed_limit)
+            if k % substeps == 0:  # NaNs persist, so checking at the outer rate loses nothing
+                _check_simulation(mjd, speed_limit)
+                if recorder is not None:
+                    internals = method.internals()
+                    recorder.record(StepRecord(t, state, obs, command, internals, tau, qacc))
     except SimulationError as e:
         failure = e.reason
     except AmexError as e:

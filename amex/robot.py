@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from functools import cache
+from functools import cache, cached_property
 
 import coal
 import mujoco
@@ -114,6 +114,13 @@ class RobotModel:
     torque_limit: np.ndarray
     velocity_limit: np.ndarray
     joint_names: list[str] = field(default_factory=list)
+
+    @cached_property
+    def zero_velocity(self) -> np.ndarray:
+        """A zero joint vector, shape (7,) (read-only; for zero-acceleration kinematics)."""
+        zero = np.zeros(self.model.nv)
+        zero.flags.writeable = False
+        return zero
 
     @property
     def nv(self) -> int:

@@ -73,13 +73,14 @@ class RobotState:
         self.data = data
         self.q = q
         self.v = v
-        pin.forwardKinematics(model, data, q, v, 0.0 * v)
+        pin.forwardKinematics(model, data, q, v, robot.zero_velocity)
         pin.computeJointJacobians(model, data)
-        oMf = pin.updateFramePlacement(model, data, fid)
-        self.y = np.concatenate([oMf.translation, oMf.rotation[:, 2]])  # copies out of data
+        H = pin.updateFramePlacement(model, data, fid).homogeneous
+        self.y = H[:3, 3:1:-1].T.ravel()  # columns (translation, z-axis): a copy out of data
         self.tcp_pos = self.y[:3]
         self.tcp_axis = self.y[3:]
-        self.J = pin.getFrameJacobian(model, data, fid, _LWA)
+        # Pinocchio returns column-major arrays; a C-ordered copy keeps row slices BLAS-friendly.
+        self.J = np.ascontiguousarray(pin.getFrameJacobian(model, data, fid, _LWA))
         self.acc_drift = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
 
     @property
