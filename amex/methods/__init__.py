@@ -7,10 +7,12 @@ from __future__ import annotations
 
 from amex.errors import ConfigError
 from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.dmp import DMP, DMPConfig
+from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.track import Track, TrackConfig
 
 METHODS: dict[str, type[Method]] = {
-    Track.name: Track,
+    cls.name: cls for cls in (DMP, DMPPhaseStop, Track)
 }
 
 
@@ -23,7 +25,11 @@ def get_method(name: str) -> type[Method]:
 
 
 __all__ = [
+    "DMP",
     "METHODS",
+    "DMPConfig",
+    "DMPPSConfig",
+    "DMPPhaseStop",
     "Method",
     "MethodConfig",
     "Observation",
