@@ -53,8 +53,13 @@ def prepare(config: RunConfig) -> RunContext:
     return RunContext(robot, plan)
 
 
-def run_one(config: RunConfig, context: RunContext, env: int, recorder=None) -> EpisodeResult:
-    """Environment ``env`` of the configured task, executed with the configured method."""
+def run_one(
+    config: RunConfig, context: RunContext, env: int, log_path: Path | None = None
+) -> EpisodeResult:
+    """Environment ``env`` of the configured task, executed with the configured method.
+
+    With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
+    """
     method_cls = get_method(config.method.name)
     method = method_cls.from_plan(context.plan, config.method, 1.0 / config.outer_hz, context.robot)
     scenario = make_scenario(
@@ -65,7 +70,13 @@ def run_one(config: RunConfig, context: RunContext, env: int, recorder=None) -> 
         context.plan.y[0, :3],
         context.plan.duration,
     )
-    return run_episode(context.robot, method, scenario, config.gains(), config.loop, recorder)
+    if log_path is None:
+        return run_episode(context.robot, method, scenario, config.gains(), config.loop)
+    from amex.log import EpisodeLogger
+
+    metadata = {"task": config.task, "method": config.method.name, "env": env, "seed": config.seed}
+    with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
+        return run_episode(context.robot, method, scenario, config.gains(), config.loop, logger)
 
 
 def format_value(value: object) -> str:
@@ -93,7 +104,10 @@ def run(
         writer.writerow(COLUMNS)
         f.flush()
         for env in range(config.episodes):
-            result = run_one(config, context, env)
+            log_path = None
+            if config.log == "full":
+                log_path = run_dir / "logs" / f"episode_{env:03d}.mcap"
+            result = run_one(config, context, env, log_path)
             results.append(result)
             writer.writerow([format_value(v) for v in result.as_row().values()])
             f.flush()
