@@ -145,11 +145,28 @@ def _validate_command_line(argv: list[str]) -> None:
         if arg.startswith("-"):
             continue
         overrides.append(arg)
+    multirun = "-m" in argv or "--multirun" in argv
+    run_dir = next((o.split("=", 1)[1] for o in overrides if o.startswith("hydra.run.dir=")), "")
     for combo in _sweep_combinations(overrides):
         try:
-            load_config(combo)
+            config = load_config(combo)
         except ConfigError as e:
             raise UsageError(str(e)) from e
+        if run_dir and not multirun:
+            _check_resumable(Path(run_dir), config)
+
+
+def _check_resumable(run_dir: Path, config: Any) -> None:
+    """Refuse a run directory that holds episodes of another configuration (before Hydra writes)."""
+    from amex.store import EpisodeStore, StoreError, config_hash
+
+    path = run_dir / "episodes.csv"
+    if not path.exists():
+        return
+    try:
+        EpisodeStore.check(path, config_hash(config))
+    except StoreError as e:
+        raise UsageError(str(e)) from e
 
 
 def _fail(message: str) -> None:

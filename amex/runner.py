@@ -1,16 +1,15 @@
 """A run: the reference plan, then ``episodes`` environments of one task with one method.
 
-Writes into the run directory ``episodes.csv`` (one row per episode, appended and flushed as each
-episode ends) and ``summary.json`` (the aggregates). No Hydra here: :func:`run` takes a validated
-:class:`~amex.config.RunConfig` and a directory, so scripts can call it directly.
+Writes into the run directory ``episodes.csv`` (one row per episode, appended durably as each
+episode ends; see :mod:`amex.store`) and ``summary.json`` (the aggregates). No Hydra here:
+:func:`run` takes a validated :class:`~amex.config.RunConfig` and a directory, so scripts can
+call it directly.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 import logging
-import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,11 +20,12 @@ import numpy as np
 from amex.config import RunConfig, validate
 from amex.episode import run_episode
 from amex.methods import get_method
-from amex.metrics import COLUMNS, EpisodeResult, summarize
+from amex.metrics import EpisodeResult, summarize
 from amex.plan.cache import reference_plan
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
 from amex.scenario import make_scenario
+from amex.store import EpisodeStore, config_hash, scene_hash
 
 log = logging.getLogger(__name__)
 
@@ -79,44 +79,45 @@ def run_one(
         return run_episode(context.robot, method, scenario, config.gains(), config.loop, logger)
 
 
-def format_value(value: object) -> str:
-    """CSV text of a metric: ``repr`` of floats (round-trips bit for bit), 0/1 for booleans."""
-    if isinstance(value, bool):
-        return "1" if value else "0"
-    if isinstance(value, float):
-        return repr(value) if math.isfinite(value) else str(value)
-    return str(value)
-
-
 def run(
     config: RunConfig,
     run_dir: Path,
     progress: Callable[[int, EpisodeResult], None] | None = None,
 ) -> dict:
-    """Execute the run into ``run_dir``; return the summary (also written as ``summary.json``)."""
+    """Execute the run into ``run_dir``; return the summary (also written as ``summary.json``).
+
+    Environments already in ``run_dir/episodes.csv`` under the same configuration hash are
+    skipped (resume after a crash or Ctrl-C); ``progress`` is called for those too, first.
+    """
     validate(config)
     run_dir.mkdir(parents=True, exist_ok=True)
-    context = prepare(config)
-    results: list[EpisodeResult] = []
-    csv_path = run_dir / EPISODES_CSV
-    with open(csv_path, "w", newline="") as f:
-        writer = csv.writer(f)
-        writer.writerow(COLUMNS)
-        f.flush()
-        for env in range(config.episodes):
-            log_path = None
-            if config.log == "full":
-                log_path = run_dir / "logs" / f"episode_{env:03d}.mcap"
-            result = run_one(config, context, env, log_path)
-            results.append(result)
-            writer.writerow([format_value(v) for v in result.as_row().values()])
-            f.flush()
-            os.fsync(f.fileno())
-            if progress is not None:
-                progress(env, result)
+    store = EpisodeStore(run_dir / EPISODES_CSV, config_hash(config), scene_hash(config))
+    for env in sorted(store.done):
+        if env < config.episodes and progress is not None:
+            progress(env, store.done[env])
+    todo = [env for env in range(config.episodes) if env not in store.done]
+    if todo:
+        context = prepare(config)
+    for env in todo:
+        log_path = None
+        if config.log == "full":
+            log_path = run_dir / "logs" / f"episode_{env:03d}.mcap"
+        result = run_one(config, context, env, log_path)
+        store.append(result)
+        if progress is not None:
+            progress(env, result)
+    results = [store.done[env] for env in range(config.episodes)]
     summary = summarize(results)
-    summary.update({"task": config.task, "method": config.method.name, "seed": config.seed})
+    summary.update(
+        {
+            "task": config.task,
+            "method": config.method.name,
+            "seed": config.seed,
+            "config_hash": store.config_hash,
+            "scene_hash": store.scene_hash,
+        }
+    )
     tmp = run_dir / (SUMMARY_JSON + ".tmp")
-    tmp.write_text(json.dumps(summary, indent=2, sort_keys=False) + "\n")
+    tmp.write_text(json.dumps(summary, indent=2) + "\n")
     os.replace(tmp, run_dir / SUMMARY_JSON)
     return summary

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from amex.metrics import COLUMNS, TIMING_COLUMNS
+from amex.metrics import TIMING_COLUMNS
+from amex.store import CSV_COLUMNS
 
 AMEX_RUN = str(Path(sys.executable).parent / "amex-run")
 
@@ -59,7 +60,7 @@ def test_run_writes_episodes_and_summary_and_prints_the_directory(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip().splitlines()[-1] == str(out)
     rows = _read_rows(out / "episodes.csv")
-    assert tuple(rows[0].keys()) == COLUMNS
+    assert tuple(rows[0].keys()) == CSV_COLUMNS
     assert [r["env"] for r in rows] == ["0", "1"]
     assert all(r["success"] == "1" and r["seed"] == "3" for r in rows)
     summary = json.loads((out / "summary.json").read_text())
@@ -89,3 +90,29 @@ def test_multirun_sweeps_tasks(tmp_path):
     csvs = sorted(sweep.glob("*/episodes.csv"))
     assert len(csvs) == 2
     assert {_read_rows(p)[0]["task"] for p in csvs} == {"0", "1"}
+
+
+def test_rerun_resumes_and_keeps_recorded_episodes(tmp_path):
+    out = tmp_path / "run"
+    args = ["task=1", "method=track", "seed=2", "max_time=1", f"hydra.run.dir={out}"]
+    assert _run([*args, "episodes=2"], tmp_path).returncode == 0
+    first = (out / "episodes.csv").read_text()
+    # simulate a crash that tore the last line
+    with open(out / "episodes.csv", "a") as f:
+        f.write("1,track,2,2,0,0")
+    proc = _run([*args, "episodes=3"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    after = (out / "episodes.csv").read_text()
+    assert after.startswith(first)  # recorded rows untouched, torn line dropped
+    assert [r["env"] for r in _read_rows(out / "episodes.csv")] == ["0", "1", "2"]
+
+
+def test_run_directory_of_another_config_is_refused_untouched(tmp_path):
+    out = tmp_path / "run"
+    base = ["task=0", "method=track", "episodes=1", "max_time=1", f"hydra.run.dir={out}"]
+    assert _run([*base, "seed=1"], tmp_path).returncode == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    proc = _run([*base, "seed=2"], tmp_path)
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1 and "another configuration" in proc.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
