@@ -15,12 +15,15 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import contextlib  # noqa: E402
 import itertools  # noqa: E402
 import re  # noqa: E402
 import sys  # noqa: E402
 from dataclasses import fields  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
+
+from hydra.experimental.callback import Callback  # noqa: E402
 
 CONF_DIR = str(Path(__file__).resolve().parent.parent / "conf")
 PROG = "amex-run"
@@ -169,6 +172,59 @@ def _check_resumable(run_dir: Path, config: Any) -> None:
         raise UsageError(str(e)) from e
 
 
+class SweepProgress(Callback):
+    """Hydra callback: one progress bar for a whole ``-m`` sweep, in the launching process.
+
+    Jobs run in worker processes (joblib) or on other machines (SLURM); this callback only counts
+    the rows that appear in the sweep's ``*/episodes.csv`` files, every half second.
+    """
+
+    def __init__(self) -> None:
+        self._stop: Any = None
+        self._thread: Any = None
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the thread: Hydra ships its callbacks to every joblib worker."""
+        return {"_stop": None, "_thread": None}
+
+    def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
+        """Start the polling thread for the sweep directory."""
+        import threading
+
+        self._stop = threading.Event()
+        sweep_dir = Path(str(config.hydra.sweep.dir))
+        overrides = [str(o) for o in config.hydra.overrides.task]
+        total = 0
+        for combo in _sweep_combinations(overrides):
+            episodes = [o.split("=", 1)[1] for o in combo if o.startswith("episodes=")]
+            total += int(episodes[-1]) if episodes else int(config.episodes)
+        self._thread = threading.Thread(
+            target=self._poll, args=(sweep_dir, total), name="amex-sweep-progress", daemon=True
+        )
+        self._thread.start()
+
+    def _poll(self, sweep_dir: Path, total: int) -> None:
+        from tqdm import tqdm
+
+        with tqdm(total=total, desc=f"sweep {sweep_dir.name}", unit="ep", file=sys.stderr) as bar:
+            while True:
+                stopping = self._stop.wait(0.5)
+                done = 0
+                for path in sweep_dir.glob("*/episodes.csv"):
+                    with contextlib.suppress(OSError):  # a file being replaced
+                        done += max(path.read_bytes().count(b"\n") - 1, 0)
+                bar.update(min(done, total) - bar.n)
+                if stopping:
+                    return
+
+    def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
+        """Final count, then stop the thread."""
+        if self._stop is not None:
+            self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+
 def _fail(message: str) -> None:
     print(f"{PROG}: error: {message}", file=sys.stderr)
     raise SystemExit(2)
@@ -177,6 +233,7 @@ def _fail(message: str) -> None:
 def _task(cfg: Any) -> None:
     """The Hydra job: one run into Hydra's output directory, with a progress bar."""
     from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
     from omegaconf import OmegaConf
     from tqdm import tqdm
     from tqdm.contrib.logging import logging_redirect_tqdm
@@ -184,10 +241,15 @@ def _task(cfg: Any) -> None:
     from amex.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
-    run_dir = Path(HydraConfig.get().runtime.output_dir)
+    hydra_config = HydraConfig.get()
+    run_dir = Path(hydra_config.runtime.output_dir)
     label = f"task {config.task} {config.method.name}"
     episodes = config.episodes
-    with logging_redirect_tqdm(), tqdm(total=episodes, desc=label, unit="ep") as bar:
+    quiet = hydra_config.mode == RunMode.MULTIRUN  # the sweep has one bar (SweepProgress)
+    with (
+        logging_redirect_tqdm(),
+        tqdm(total=episodes, desc=label, unit="ep", disable=quiet) as bar,
+    ):
         successes = 0
 
         def progress(env: int, result: Any) -> None:
@@ -200,7 +262,7 @@ def _task(cfg: Any) -> None:
     s = summary["success"]["mean"]
     t = summary["final_time"]
     print(
-        f"success {s:.3f}  final time {t['mean']:.2f} +- {t['two_std']:.2f} s  "
+        f"{label}: success {s:.3f}  final time {t['mean']:.2f} +- {t['two_std']:.2f} s  "
         f"({summary['failures']} failures)",
         file=sys.stderr,
     )
