@@ -6,8 +6,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
-from amex.control.osc import Command
 from amex.errors import ConfigError
+from amex.interfaces import Command
 from amex.methods.base import Observation
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from amex.config import RunConfig
-from amex.control.osc import Command
 from amex.episode import run_episode
+from amex.interfaces import Command
 from amex.methods import Track, TrackConfig
 from amex.runner import prepare, run_one
 from amex.scenario import make_scenario

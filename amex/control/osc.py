@@ -25,22 +25,8 @@ from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
 from amex.errors import SolverError
+from amex.interfaces import PD, Command
 from amex.robot import RobotModel
-
-
-@dataclass
-class PD:
-    """Gains and weight of one task row of Eq. 5-6.
-
-    Attributes:
-        kp: stiffness [1/s^2].
-        kd: damping [1/s].
-        weight: the cost weight ``c`` of Eq. 5 (dimensionless, relative to the others).
-    """
-
-    kp: float
-    kd: float
-    weight: float
 
 
 @dataclass(frozen=True)
@@ -65,19 +51,6 @@ class OSCGains:
     damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
     margin: float = 0.02
     reg: float = 1e-6
-
-
-class Command(NamedTuple):
-    """What the outer loop sends to the inner controller (held for one outer period).
-
-    Either a task-space target ``y, yd`` (6-D: TCP position [m] and z-axis; velocities per second),
-    or a joint-space target ``q, qd`` [rad, rad/s], or both.
-    """
-
-    y: np.ndarray | None = None
-    yd: np.ndarray | None = None
-    q: np.ndarray | None = None
-    qd: np.ndarray | None = None
 
 
 class Objective(NamedTuple):

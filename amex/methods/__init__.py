@@ -6,13 +6,14 @@
 from __future__ import annotations
 
 from amex.errors import ConfigError
+from amex.methods.amex import AMEX, AMEXConfig
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.track import Track, TrackConfig
 
 METHODS: dict[str, type[Method]] = {
-    cls.name: cls for cls in (DMP, DMPPhaseStop, Track)
+    cls.name: cls for cls in (AMEX, DMP, DMPPhaseStop, Track)
 }
 
 
@@ -25,6 +26,8 @@ def get_method(name: str) -> type[Method]:
 
 
 __all__ = [
+    "AMEX",
+    "AMEXConfig",
     "DMP",
     "METHODS",
     "DMPConfig",

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import abc
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from amex.control.osc import PD, Command
-from amex.plan.reference import ReferencePlan
-from amex.robot import RobotModel
+from amex.interfaces import PD, Command
+
+if TYPE_CHECKING:  # methods stay importable without the simulator stack
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
 
 
 @dataclass(frozen=True)

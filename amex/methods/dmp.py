@@ -39,16 +39,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from scipy.linalg import expm
 
-from amex.control.osc import PD, Command
 from amex.errors import ConfigError
+from amex.interfaces import PD, Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.reference import ReferencePlan
-from amex.robot import RobotModel
+
+if TYPE_CHECKING:  # no simulator stack needed to use a method
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
 
 AMPLITUDE_MODES = ("trained", "goal")
 

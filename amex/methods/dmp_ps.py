@@ -7,8 +7,8 @@ from typing import Any
 
 import numpy as np
 
-from amex.control.osc import Command
 from amex.errors import ConfigError
+from amex.interfaces import Command
 from amex.methods.base import Observation
 from amex.methods.dmp import DMP, DMPConfig, DMPTarget
 

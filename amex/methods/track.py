@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from amex.control.osc import PD, Command
+from amex.interfaces import PD, Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.reference import ReferencePlan
-from amex.robot import RobotModel
+
+if TYPE_CHECKING:  # no simulator stack needed to use a method
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
 
 
 @dataclass

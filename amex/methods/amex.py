@@ -1,0 +1,379 @@
+"""Adaptive Motion Execution (AMEX): the paper's Algorithm 1 with Eq. 7, 8 and 9.
+
+Plan. The reference samples ``tau_hat_ref(k dt_ref)`` (N + 1 over T_ref) are reparametrized over
+the phase s in [0, 1], ``tau_ref(s) = tau_hat_ref(s T_ref)``, as a quadratic B-spline
+(:meth:`~amex.plan.spline.QuadraticBSpline.fit`, interpolating by default). The current plan is
+``tau_plan(s~) = tau_ref(s~) + p + (s~ - 1) q`` (:class:`~amex.plan.spline.WarpedSpline`): every
+Eq. 7 update adds an affine function of s~, so the plan is always the reference plus one affine
+offset (on the spline's control points: an offset affine in their Greville abscissae), and Eq. 7
+is applied exactly, in O(m). ``Delta s_ref = dt / T_ref``.
+
+Phase convention: after an update, s is the phase of the measured state (Eq. 7 puts y at
+``tau_plan(s)``), and the command y* aims one reference step ahead, at ``s_t = min(s + Delta s_ref,
+1)``. Update k, with measured task state y and goal g (Algorithm 1, steps 2-4):
+
+1. Phase, Eq. 8. k = 0: s = 0 (nothing executed yet). The next ``warmup_steps`` updates:
+   ``s += Delta s_ref`` (as the original: at s = 0 the reference is at rest, so the first commanded
+   steps are ~0 and their ratio delta_y meaningless). Then
+   ``s += Delta s_ref * clip(delta_g * delta_y, rate_min, rate_max)`` with
+   ``delta_g = ||g_ref - tau_ref(s_t,prev)|| / ||g - y||`` and
+   ``delta_y = ||y - y_prev|| / ||y*_prev - y_prev||`` (actual over commanded step). The paper's
+   ``tau_ref(s)`` is read at ``s_t,prev``, the phase the previous command aimed at, i.e. where
+   y should now be: with the previous phase instead, a perfectly executed reference would give
+   ``delta_g > 1`` every step and the phase would run ahead of the robot.
+2. Plan, Eq. 7 at the new s: ``Delta y = y - tau_plan(s)``, ``Delta g = g - tau_plan(1)``; the
+   plan gains ``Delta g + (Delta g - Delta y)(s~ - 1)/(1 - s)``, so afterwards ``tau_plan(s) = y``
+   and ``tau_plan(1) = g`` (to rounding, ~1e-15). The paper writes ``Delta g = g - g_prev``;
+   ``g - tau_plan(1)`` equals it whenever the invariant held one step before, and also brings a
+   goal that differs from g_ref before the start (Fig. 2a) into the plan.
+3. Target, Eq. 9: y* moves along the warped plan by the reference's progress of one step.
+   ``eq9="tangent"`` is Eq. 9 as written, ``y* = y + Delta s_ref ||tau_ref'(s)|| d`` with d the
+   unit tangent ``tau_plan'(s) / ||.||`` (analytic: ``tau_ref'(s) + q``). ``eq9="secant"`` (the
+   default) takes both derivatives as differences over the step, ``d`` the unit vector of
+   ``tau_plan(s_t) - tau_plan(s)`` and the length ``||tau_ref(s_t) - tau_ref(s)||``, as the
+   original also used finite differences. Only the secant makes the paper's claim hold exactly:
+   with a fixed goal and perfect execution, AMEX reproduces the reference sample by sample and s
+   advances by exactly Delta s_ref (the tangent form commits an O(Delta s^2) error per step,
+   ~4e-3 over a unit-size motion, which the phase then has to absorb). The velocity target is
+   the same motion per second: ``y_dot* = (y* - y) / dt``, i.e. speed
+   ``||tau_ref'(s)|| / T_ref`` (or its secant version) along d, since
+   ``Delta s_ref / dt = 1 / T_ref``. With the default inner gains (Kp 1, Kd 100) the OSC tracks
+   mostly this velocity.
+
+Guards (none are in the paper or the original code):
+
+* ``||g - y|| <= eps_goal`` (Eq. 8 divides by it): the robot is at the goal, ``delta_g :=
+  rate_max`` (finish the phase as fast as allowed).
+* ``||y*_prev - y_prev|| <= eps_step`` (a zero commanded step, and before the first command):
+  ``delta_y := 1``, there is no evidence of lag.
+* Bounded phase step: ``delta_g * delta_y`` is clipped to ``[rate_min, rate_max]``; with
+  ``rate_min >= 0`` the phase never decreases.
+* No overshoot: the step length is capped at ``||g - y||``. Near the end of a rest-to-rest
+  reference the remaining plan can be shorter than the reference's step; without the cap the
+  robot circles the goal while the phase stalls.
+* Zero direction (``||d|| <= eps_tangent`` before normalizing): d points at the goal, or the
+  step is 0 if the robot is at the goal.
+* The reference has arrived: once ``||g_ref - tau_ref(s_t)|| <= end_fraction ||g_ref -
+  tau_ref(0)||`` the phase ends (next item). A rest-to-rest reference's remaining distance
+  vanishes like (1 - s)^3 and its speed like (1 - s)^2, so near the end delta_g -> 0 whenever
+  the robot is a little off (noise, a late goal change): without this the phase stalls at
+  s ~ 0.996 while Eq. 9 commands ~0 motion (measured: with 10 um noise per step the robot then
+  drifts for ever). With 1e-4 a perfectly executed reference is reproduced up to its last
+  ~2 % of phase (24 um from g in the benchmark); 0 switches the guard off (the paper as is).
+* ``s -> 1`` (Eq. 7 divides by 1 - s): once the previous command aimed at phase 1 (its s_t = 1,
+  the plan's end g, or the reference had arrived), or the new phase reaches ``1 - end_margin``
+  (which bounds 1 / (1 - s)), s is set to 1 and AMEX runs the final approach, where Eq. 7 is no
+  longer applied (on [s, 1] the plan degenerates to the segment y -> g anyway, and Eq. 9's speed
+  to ``||tau_ref'(1)|| ~ 0``, which would leave a lagging robot short of the goal). It commands
+  ``y_dot* = v``, ``y* = y + dt v`` with ``v = approach_rate (g - y)`` capped at the reference's
+  peak speed: a first-order approach to the (possibly still moving) goal, ~0 when the plan was
+  executed well.
+
+The 6-D task of the benchmark (TCP position and TCP z-axis) is treated as one vector, as in the
+original; the inner controller tracks the raw axis rows. The step is O(m), independent of the
+number of spline control points (``analysis/bench_amex.py`` measures it).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+
+from amex.errors import ConfigError
+from amex.interfaces import PD, Command
+from amex.methods.base import Method, MethodConfig, Observation
+from amex.plan.spline import QuadraticBSpline, WarpedSpline, max_sample_error
+
+if TYPE_CHECKING:  # no simulator stack needed to use a method
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
+
+EQ9_FORMS = ("secant", "tangent")
+
+
+@dataclass
+class AMEXConfig(MethodConfig):
+    """AMEX settings; inner gains are the original code's.
+
+    Attributes:
+        pos: inner PD on the TCP position target (original: Kp 1, Kd 100).
+        dir: inner PD on the TCP axis target (original: Kp 1, Kd 100).
+        n_control: spline control points; 0: one per reference sample (interpolation).
+        warmup_steps: updates that advance the phase by exactly Delta s_ref (original: 2).
+        rate_min: lower bound of the phase factor delta_g * delta_y (>= 0: s never decreases).
+        rate_max: upper bound of the phase factor (the phase step is at most rate_max Delta s_ref).
+        eps_goal: distance to the goal below which the robot counts as at the goal.
+        eps_step: commanded step below which delta_y is taken as 1.
+        eps_tangent: plan tangent norm below which d points at the goal.
+        end_margin: phase distance to 1 at which the final approach begins.
+        end_fraction: the final approach also begins once the reference's remaining distance
+            ``||g_ref - tau_ref(s_t)||`` is below this fraction of its start-goal distance.
+        approach_rate: gain of the final approach.
+        eq9: ``"secant"`` (one reference step; exact on an executed plan) or ``"tangent"`` (the
+            derivatives at s, as the paper writes Eq. 9); see the module notes.
+    """
+
+    name: str = "amex"
+    pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
+    dir: PD = field(default_factory=lambda: PD(1.0, 100.0, 0.5))
+    n_control: int = 0  # [-]
+    warmup_steps: int = 2  # [steps]
+    rate_min: float = 0.0  # [-]
+    rate_max: float = 5.0  # [-] (goals of Task 1 need 0.6-2.4)
+    eps_goal: float = 1e-9  # [task units: m, axis -]
+    eps_step: float = 1e-9  # [task units]
+    eps_tangent: float = 1e-12  # [task units per unit phase]
+    end_margin: float = 1e-6  # [-] phase; bounds 1 / (1 - s) in Eq. 7 by 1e6
+    end_fraction: float = 1e-4  # [-] of ||g_ref - tau_ref(0)|| (benchmark: ~24 um); 0: off
+    approach_rate: float = 5.0  # [1/s]
+    eq9: str = "secant"
+
+
+class AMEXTarget(NamedTuple):
+    """AMEX's output of one update.
+
+    Attributes:
+        y_star: next task-space target y*, shape (m,).
+        yd_star: velocity target y_dot*, shape (m,) [task units / s].
+        s: phase after the update, in [0, 1].
+        delta_g: Eq. 8 goal factor (guarded), [-].
+        delta_y: Eq. 8 execution factor (guarded), [-].
+    """
+
+    y_star: np.ndarray
+    yd_star: np.ndarray
+    s: float
+    delta_g: float
+    delta_y: float
+
+
+class AMEX(Method):
+    """Adaptive Motion Execution (the paper's Algorithm 1; see the module notes).
+
+    Args:
+        reference: tau_hat_ref samples, equally spaced over [0, duration], shape (N + 1, m).
+        duration: T_ref [s].
+        dt: outer (control) period [s]; Delta s_ref = dt / T_ref.
+        **params: any :class:`AMEXConfig` AMEX parameter (n_control, warmup_steps, rate_min,
+            rate_max, eps_goal, eps_step, eps_tangent, end_margin, end_fraction, approach_rate,
+            eq9).
+
+    Attributes:
+        reference: tau_ref over the phase, a quadratic B-spline.
+        plan: tau_plan, the reference plus the affine offset of Eq. 7 (valid while s < 1).
+        fit_error: largest deviation of ``reference`` from the samples [task units].
+        ds_ref: Delta s_ref [-].
+        peak_speed: largest reference speed ``max ||tau_ref'(s)|| / T_ref`` [task units / s].
+    """
+
+    name = "amex"
+    config_class = AMEXConfig
+
+    def __init__(self, reference: np.ndarray, duration: float, dt: float, **params: Any) -> None:
+        p = AMEXConfig()
+        names = _amex_param_names(AMEXConfig)
+        for key, value in params.items():
+            if key not in names:
+                raise ConfigError.invalid("amex parameter", key, sorted(names))
+            setattr(p, key, value)
+        Y = np.array(reference, dtype=float)
+        if Y.ndim != 2 or len(Y) < 3 or not np.all(np.isfinite(Y)):
+            raise ConfigError(
+                f"AMEX reference must be finite, shape (N + 1 >= 3, m); got {Y.shape}"
+            )
+        if not float(duration) > 0.0:
+            raise ConfigError.invalid("duration", duration, "> 0 [s]")
+        if not 0.0 < float(dt) <= float(duration):
+            raise ConfigError.invalid("dt", dt, f"in (0, duration = {duration}] [s]")
+        if not (p.n_control == 0 or 3 <= p.n_control <= len(Y)):
+            raise ConfigError.invalid("n_control", p.n_control, f"0 or 3..{len(Y)}")
+        if not (int(p.warmup_steps) == p.warmup_steps and p.warmup_steps >= 0):
+            raise ConfigError.invalid("warmup_steps", p.warmup_steps, "an integer >= 0")
+        if not 0.0 <= p.rate_min <= p.rate_max or not p.rate_max > 0.0:
+            raise ConfigError.invalid(
+                "rate_min, rate_max", (p.rate_min, p.rate_max), "0 <= min <= max, max > 0"
+            )
+        for key in ("eps_goal", "eps_step", "eps_tangent", "approach_rate", "end_fraction"):
+            if not getattr(p, key) >= 0.0:
+                raise ConfigError.invalid(key, getattr(p, key), ">= 0")
+        if p.eq9 not in EQ9_FORMS:
+            raise ConfigError.invalid("eq9", p.eq9, EQ9_FORMS)
+        if not 0.0 < p.end_margin < 1.0:
+            raise ConfigError.invalid("end_margin", p.end_margin, "in (0, 1)")
+
+        self.reference = QuadraticBSpline.fit(Y, p.n_control or None)
+        self.fit_error = max_sample_error(self.reference, Y)
+        self.plan = WarpedSpline(self.reference)
+        self.duration = float(duration)
+        self.dt = float(dt)
+        self.ds_ref = self.dt / self.duration
+        self.g_ref = self.reference.control_points[-1].copy()  # tau_ref(1)
+        fine = np.linspace(0.0, 1.0, 4 * len(Y) + 1)
+        speeds = np.linalg.norm(self.reference.derivative(fine), axis=1) / self.duration
+        self.peak_speed = float(speeds.max())
+        self.warmup_steps = int(p.warmup_steps)
+        self.rate_min, self.rate_max = float(p.rate_min), float(p.rate_max)
+        self.eps_goal, self.eps_step = float(p.eps_goal), float(p.eps_step)
+        self.eps_tangent = float(p.eps_tangent)
+        self.end_margin = float(p.end_margin)
+        self.end_distance = float(p.end_fraction) * float(np.linalg.norm(Y[-1] - Y[0]))
+        self.approach_rate = float(p.approach_rate)
+        self.secant = p.eq9 == "secant"
+
+        m = Y.shape[1]
+        # One matmul per step evaluates tau_ref(s_t), tau_ref(s), tau_ref'(s): a weight window
+        # wide enough for both spans (s_t - s <= Delta s_ref), on zero-padded control points.
+        width = 3 + self.reference.max_index_shift(self.ds_ref) + 1
+        self._C = np.vstack([self.reference.control_points, np.zeros((width - 3, m))])
+        self._W = np.zeros((3, width))  # rows: values at s_t, values at s, derivatives at s
+        self._W_t = self._W[0]
+        self._X = np.empty((4, m))  # g_ref, tau_ref(s_t), tau_ref(s), tau_ref'(s)
+        self._X[0] = self.g_ref
+        self._X_eval = self._X[1:]
+        self._D = np.empty((2, m))  # g_ref - tau_ref(s_t), tau_ref(s_t) - tau_ref(s)
+        self._y_prev = np.zeros(m)
+        self.restart()
+
+    # ----------------------------------------------------------------------------- numpy API
+    def restart(self) -> None:
+        """Start a new execution: s = 0, tau_plan = tau_ref (Algorithm 1, initialization)."""
+        self.plan.reset()
+        self._s = 0.0
+        self._k = 0  # updates so far
+        self._final = False
+        self._step_prev = 0.0  # ||y*_prev - y_prev||; 0: no command yet
+        self._aimed = 0.0  # phase the last command aimed at
+        r = self.g_ref - self.reference.control_points[0]
+        self._ref_remaining = math.sqrt(np.dot(r, r))  # ||g_ref - tau_ref(s)||
+        self._last: AMEXTarget | None = None
+
+    @property
+    def s(self) -> float:
+        """The phase, in [0, 1]."""
+        return self._s
+
+    @property
+    def final_approach(self) -> bool:
+        """Whether the phase reached 1 and the final approach to g runs."""
+        return self._final
+
+    def update(self, y: np.ndarray, g: np.ndarray) -> AMEXTarget:
+        """One outer step of Algorithm 1 (steps 2-4) for task state y and goal g, shapes (m,)."""
+        # Eq. 8 factors, guarded; computed every step for the log, used after the warm-up.
+        gy = g - y
+        dist_goal = math.sqrt(np.dot(gy, gy))
+        delta_g = self._ref_remaining / dist_goal if dist_goal > self.eps_goal else self.rate_max
+        if self._step_prev > self.eps_step:
+            d = y - self._y_prev
+            delta_y = math.sqrt(np.dot(d, d)) / self._step_prev
+        else:
+            delta_y = 1.0
+        k = self._k
+        self._k = k + 1
+        self._y_prev[:] = y
+        if k == 0:
+            s = 0.0
+        elif self._final or self._aimed >= 1.0:
+            s = 1.0
+        else:
+            rate = 1.0 if k <= self.warmup_steps else delta_g * delta_y
+            s = self._s + self.ds_ref * min(max(rate, self.rate_min), self.rate_max)
+        if s >= 1.0 - self.end_margin:
+            return self._approach(y, gy, delta_g, delta_y)
+
+        self._s = s
+        s_t = self._aimed = min(s + self.ds_ref, 1.0)  # the phase this step's command aims at
+        W, X, D = self._W, self._X, self._D
+        i, W[1, 0], W[1, 1], W[1, 2], W[2, 0], W[2, 1], W[2, 2] = self.reference.weights(s)
+        j, b0, b1, b2, _, _, _ = self.reference.weights(s_t)
+        o = j - i
+        self._W_t.fill(0.0)
+        W[0, o], W[0, o + 1], W[0, o + 2] = b0, b1, b2
+        np.matmul(W, self._C[i : i + W.shape[1]], out=self._X_eval)
+        np.subtract(X[0:2], X[1:3], out=D)
+        # Eq. 7 in closed form (WarpedSpline.anchor): tau_plan = tau_ref + p + (s~ - 1) q with
+        # tau_plan(1) = g and tau_plan(s) = y.
+        q = self.plan.q
+        np.subtract(g, self.g_ref, out=self.plan.p)
+        np.add(gy, X[2], out=q)
+        q -= X[0]
+        q *= 1.0 / (1.0 - s)
+        r_t = D[0]
+        self._ref_remaining = math.sqrt(np.dot(r_t, r_t))  # delta_g's numerator, next step
+        if self._ref_remaining <= self.end_distance:  # the reference has arrived: end the phase
+            self._aimed = 1.0
+        # Eq. 9: along the warped plan, with the reference's progress (see the module notes).
+        if self.secant:
+            ref_step = D[1]  # tau_ref(s_t) - tau_ref(s)
+            length = math.sqrt(np.dot(ref_step, ref_step))
+            direction = (s_t - s) * q  # tau_plan(s_t) - tau_plan(s)
+            direction += ref_step
+        else:
+            tangent = X[3]
+            length = self.ds_ref * math.sqrt(np.dot(tangent, tangent))  # ds ||tau_ref'(s)||
+            direction = tangent + q  # tau_plan'(s)
+        norm_dir = math.sqrt(np.dot(direction, direction))
+        if not norm_dir > self.eps_tangent:
+            if dist_goal > self.eps_goal:
+                direction, norm_dir = gy, dist_goal
+            else:
+                length, norm_dir = 0.0, 1.0
+        if length > dist_goal:  # never past the goal
+            length = dist_goal
+        self._step_prev = length
+        step = direction * (length / norm_dir)
+        target = AMEXTarget(y + step, step * (1.0 / self.dt), s, delta_g, delta_y)
+        self._last = target
+        return target
+
+    def _approach(
+        self, y: np.ndarray, gy: np.ndarray, delta_g: float, delta_y: float
+    ) -> AMEXTarget:
+        """Command the final approach at s = 1 (see the module notes)."""
+        self._s = 1.0
+        self._final = True
+        v = self.approach_rate * gy
+        speed = math.sqrt(np.dot(v, v))
+        if speed > self.peak_speed:
+            v *= self.peak_speed / speed
+            speed = self.peak_speed
+        self._step_prev = speed * self.dt
+        target = AMEXTarget(y + self.dt * v, v, 1.0, delta_g, delta_y)
+        self._last = target
+        return target
+
+    # ----------------------------------------------------------------------------- Method
+    @classmethod
+    def from_plan(
+        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
+    ) -> AMEX:
+        """See :meth:`Method.from_plan`; the plan's 6-D tau_ref with the config's parameters."""
+        names = _amex_param_names(cls.config_class)
+        params = {k: getattr(config, k) for k in names if hasattr(config, k)}
+        return cls(plan.y, plan.duration, dt, **params)
+
+    def reset(self, obs: Observation) -> None:
+        """See :meth:`Method.reset`: :meth:`restart` (the first update reads y_0, g_0)."""
+        self.restart()
+
+    def step(self, obs: Observation) -> Command:
+        """See :meth:`Method.step`: :meth:`update` with the measured ``obs.y`` and ``obs.goal``."""
+        target = self.update(obs.y, obs.goal)
+        return Command(y=target.y_star, yd=target.yd_star)
+
+    def internals(self) -> dict[str, Any]:
+        """Phase s, Eq. 8 factors delta_g and delta_y, targets y_star and yd_star (last update)."""
+        t = self._last
+        if t is None:
+            return {"s": self._s, "delta_g": 1.0, "delta_y": 1.0, "y_star": None, "yd_star": None}
+        return {"s": t.s, "delta_g": t.delta_g, "delta_y": t.delta_y, "y_star": t.y_star,
+                "yd_star": t.yd_star}  # fmt: skip
+
+
+def _amex_param_names(config_class: type[MethodConfig]) -> set[str]:
+    """Return the AMEX parameters of ``config_class``: its fields minus :class:`MethodConfig`'s."""
+    base = {f.name for f in fields(MethodConfig)}
+    return {f.name for f in fields(config_class)} - base
