@@ -162,10 +162,7 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
             for metric in PAIRED_METRICS:
                 d = (wide[(metric, a)].astype(float) - wide[(metric, b)].astype(float)).to_numpy()
                 lo, hi = bootstrap_ci(d, seed=task)
-                if np.all(d == 0):
-                    p = 1.0
-                else:
-                    p = float(wilcoxon(d, zero_method="zsplit").pvalue)
+                p = 1.0 if np.all(d == 0) else float(wilcoxon(d, zero_method="zsplit").pvalue)
                 records.append(
                     {
                         "task": task,
@@ -213,30 +210,38 @@ def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
     verdict(
         "CR is the smoothest (lowest sum of squared accelerations)",
         paper_methods,
-        lambda t: get(t, "cr", "sum_sq_acc_mean")
-        < min(get(t, "amex", "sum_sq_acc_mean"), get(t, "dmp", "sum_sq_acc_mean")),
+        lambda t: (
+            get(t, "cr", "sum_sq_acc_mean")
+            < min(get(t, "amex", "sum_sq_acc_mean"), get(t, "dmp", "sum_sq_acc_mean"))
+        ),
         lambda t: ", ".join(f"{m} {get(t, m, 'sum_sq_acc_mean'):.3g}" for m in paper_methods),
     )
     verdict(
         "AMEX is smoother than DMP",
         ("amex", "dmp"),
         lambda t: get(t, "amex", "sum_sq_acc_mean") < get(t, "dmp", "sum_sq_acc_mean"),
-        lambda t: f"amex {get(t, 'amex', 'sum_sq_acc_mean'):.3g} vs dmp "
-        f"{get(t, 'dmp', 'sum_sq_acc_mean'):.3g}",
+        lambda t: (
+            f"amex {get(t, 'amex', 'sum_sq_acc_mean'):.3g} vs dmp "
+            f"{get(t, 'dmp', 'sum_sq_acc_mean'):.3g}"
+        ),
     )
     verdict(
         "compute time CR >> AMEX > DMP (>> meaning 10x)",
         paper_methods,
-        lambda t: get(t, "cr", "compute_time_mean") > 10 * get(t, "amex", "compute_time_mean")
-        and get(t, "amex", "compute_time_mean") > get(t, "dmp", "compute_time_mean"),
+        lambda t: (
+            get(t, "cr", "compute_time_mean") > 10 * get(t, "amex", "compute_time_mean")
+            and get(t, "amex", "compute_time_mean") > get(t, "dmp", "compute_time_mean")
+        ),
         lambda t: ", ".join(f"{m} {get(t, m, 'compute_time_mean'):.2e}" for m in paper_methods),
     )
     verdict(
         "AMEX's final time spreads more than CR's",
         ("amex", "cr"),
         lambda t: get(t, "amex", "final_time_2std") > get(t, "cr", "final_time_2std"),
-        lambda t: f"2 std amex {get(t, 'amex', 'final_time_2std'):.2f} s vs cr "
-        f"{get(t, 'cr', 'final_time_2std'):.2f} s",
+        lambda t: (
+            f"2 std amex {get(t, 'amex', 'final_time_2std'):.2f} s vs cr "
+            f"{get(t, 'cr', 'final_time_2std'):.2f} s"
+        ),
     )
     return out
 
@@ -264,7 +269,9 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
                 "final time [s]": _pm(r.final_time_mean, r.final_time_2std, ".2f"),
                 "final time (paper)": _pm(r.final_time_mean_paper, r.final_time_2std_paper, ".2f"),
                 "sum sq. acc.": _pm(r.sum_sq_acc_mean, r.sum_sq_acc_2std, ".2e"),
-                "sum sq. acc. (paper)": _pm(r.sum_sq_acc_mean_paper, r.sum_sq_acc_2std_paper, ".2e"),
+                "sum sq. acc. (paper)": _pm(
+                    r.sum_sq_acc_mean_paper, r.sum_sq_acc_2std_paper, ".2e"
+                ),
                 "compute [s]": _pm(r.compute_time_mean, r.compute_time_2std, ".2e"),
                 "compute (paper)": _pm(r.compute_time_mean_paper, r.compute_time_2std_paper, ".2e"),
                 "compute median [s]": f"{r.compute_time_median:.2e}",
@@ -293,10 +300,15 @@ def render_markdown(table: pd.DataFrame, pairs: pd.DataFrame, verdicts, source: 
     if len(pairs):
         shown = pairs.copy()
         shown["mean_diff"] = shown.mean_diff.map(lambda v: f"{v:.3g}")
-        shown["95% CI"] = [f"[{lo:.3g}, {hi:.3g}]" for lo, hi in zip(pairs.ci_low, pairs.ci_high)]
+        shown["95% CI"] = [
+            f"[{lo:.3g}, {hi:.3g}]" for lo, hi in zip(pairs.ci_low, pairs.ci_high, strict=False)
+        ]
         shown["wilcoxon_p"] = shown.wilcoxon_p.map(lambda v: f"{v:.2g}")
-        parts.append(_markdown(shown[["task", "a", "b", "metric", "pairs", "mean_diff", "95% CI",
-                                      "wilcoxon_p"]]))
+        parts.append(
+            _markdown(
+                shown[["task", "a", "b", "metric", "pairs", "mean_diff", "95% CI", "wilcoxon_p"]]
+            )
+        )
     else:
         parts.append("(no pair of methods ran on the same environments)")
     parts.append("\n## The paper's claims in our numbers\n")
@@ -330,7 +342,9 @@ def write_outputs(root: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.table [RUNS] [--out DIR]``."""
-    parser = argparse.ArgumentParser(prog="make table", description="Fig. 5 from episodes.csv files")
+    parser = argparse.ArgumentParser(
+        prog="make table", description="Fig. 5 from episodes.csv files"
+    )
     parser.add_argument("runs", nargs="?", default="runs", type=Path)
     parser.add_argument("--out", default=HERE / "out", type=Path)
     args = parser.parse_args(argv)
