@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow lint bench figures clean
+.PHONY: install run test test-slow lint bench table figures paper clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,21 @@ lint: $(STAMP)
 ## Medians of the inner step, an episode, the reference plan and every method's outer step.
 bench: $(STAMP)
 	$(BIN)/python -m amex.bench
+
+## The paper's Fig. 5 from every episodes.csv under $(RUNS), into analysis/out/.
+table: $(STAMP)
+	$(BIN)/python -m analysis.table $(RUNS)
+
+## The paper's figures (Fig. 2 from AMEX itself, Fig. 4 and Fig. 6 analogues) into analysis/out/.
+figures: $(STAMP)
+	$(BIN)/python -m analysis.figures
+
+## The whole comparison: 4 tasks x 3 methods x 150 environments, then the table.
+## Re-running resumes: recorded episodes are kept and skipped.
+PAPER_DIR ?= runs/paper
+paper: $(STAMP)
+	$(BIN)/amex-run -m task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=$(PAPER_DIR)
+	$(BIN)/python -m analysis.table $(PAPER_DIR)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache

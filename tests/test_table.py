@@ -1,0 +1,65 @@
+"""``make table`` on real runs: the report, and clear errors that overwrite nothing."""
+
+import shutil
+
+import pytest
+
+from amex.config import RunConfig
+from amex.methods import METHODS
+from amex.runner import run
+from analysis.table import main
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("runs")
+    for task in (1, 2):
+        for name in ("amex", "dmp"):
+            config = RunConfig(task=task, episodes=3, max_time=6.0)
+            config.method = METHODS[name].config_class()
+            run(config, root / f"task{task}_{name}")
+    return root
+
+
+def test_table_reports_ours_beside_the_paper_with_paired_stats(runs, tmp_path, capsys):
+    assert main([str(runs), "--out", str(tmp_path)]) == 0
+    md = (tmp_path / "fig5.md").read_text()
+    assert "| 1 | amex | 3 |" in md and "4.17 ± 0.77" in md  # the paper's Task 1 AMEX row
+    assert "## Paired comparisons" in md and "amex | dmp | final_time" in md
+    assert "AMEX is smoother than DMP" in md
+    for name in ("fig5.tex", "fig5.csv", "paired.csv"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+def _bad_input(tmp_path, capsys, root):
+    out = tmp_path / "out"
+    out.mkdir(exist_ok=True)
+    (out / "fig5.md").write_text("previous table")
+    code = main([str(root), "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("make table: error:")
+    assert (out / "fig5.md").read_text() == "previous table"
+    return err[0]
+
+
+def test_no_runs_is_a_clear_error(tmp_path, capsys):
+    (tmp_path / "empty").mkdir()
+    assert "no episodes.csv" in _bad_input(tmp_path, capsys, tmp_path / "empty")
+
+
+def test_corrupt_csv_names_the_file(runs, tmp_path, capsys):
+    root = tmp_path / "copy"
+    shutil.copytree(runs, root)
+    bad = root / "task1_amex" / "episodes.csv"
+    lines = bad.read_text().splitlines(keepends=True)
+    bad.write_text(lines[0] + "1,amex,oops\n" + "".join(lines[1:]))
+    assert str(bad) in _bad_input(tmp_path, capsys, root)
+
+
+def test_mixed_configurations_are_refused(runs, tmp_path, capsys):
+    root = tmp_path / "mixed"
+    shutil.copytree(runs, root)
+    config = RunConfig(task=1, episodes=1, max_time=1.0, seed=9)
+    config.method = METHODS["dmp"].config_class()
+    run(config, root / "other_seed")
+    assert "mixed" in _bad_input(tmp_path, capsys, root)
