@@ -165,6 +165,7 @@ def run_episode(
         collision.set_obstacles(obstacles)
 
     goal = scenario.goal_at(0.0)
+    gx, gy, gz = goal.tolist()
     goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
     compute_times: list[float] = []
     sum_sq_acc = 0.0
@@ -177,13 +178,16 @@ def run_episode(
     try:
         for k in range(n_steps + 1):
             t = k * dt
-            q = mjd.qpos.copy()
-            v = mjd.qvel.copy()
+            outer = k % substeps == 0
+            # copies on outer steps (observations and logs keep them), views otherwise
+            q = mjd.qpos.copy() if outer else mjd.qpos
+            v = mjd.qvel.copy() if outer else mjd.qvel
             state = RobotState(robot, pdata, q, v)
             if t <= goal_moves_until:
                 goal = scenario.goal_at(t)
-            diff = state.tcp_pos - goal
-            distance = math.sqrt(diff @ diff)
+                gx, gy, gz = goal.tolist()
+            px, py, pz = state.y_list[:3]
+            distance = math.sqrt((px - gx) ** 2 + (py - gy) ** 2 + (pz - gz) ** 2)
             if distance <= loop.stop_radius:
                 break
             if k == n_steps:
@@ -193,7 +197,7 @@ def run_episode(
                 sim.set_obstacles(obstacles)
                 if collision is not None:
                     collision.set_obstacles(obstacles)
-            if k % substeps == 0:
+            if outer:
                 obs = Observation(
                     t=t,
                     q=q,
@@ -217,7 +221,7 @@ def run_episode(
             sum_sq_acc += float(qacc @ qacc)
             if mjd.ncon:
                 collided = True
-            if k % substeps == 0:  # NaNs persist, so checking at the outer rate loses nothing
+            if outer:  # NaNs persist, so checking at the outer rate loses nothing
                 _check_simulation(mjd, speed_limit)
                 if recorder is not None:
                     internals = method.internals()

@@ -126,7 +126,7 @@ class OperationalSpaceController:
             J = state.J
             v = state.v
             twist = (J @ v).tolist()
-            px, py, pz, zx, zy, zz = state.y.tolist()
+            px, py, pz, zx, zy, zz = state.y_list
             ax, ay, az, bx, by, bz = state.acc_drift.tolist()  # linear drift, angular drift
             wx, wy, wz = twist[3:]
             # z_dot = w x z and its drift z_ddot|_(q_ddot=0) = alpha x z + w x z_dot (AxisMap)

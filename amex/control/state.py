@@ -55,7 +55,9 @@ class RobotState:
     Attributes:
         q: joint positions, shape (7,) [rad].
         v: joint velocities, shape (7,) [rad/s].
-        y: the 6-D task state of the paper's methods, (TCP position [m], TCP z-axis), shape (6,).
+        y_list: the 6-D task state of the paper's methods as Python floats, (TCP position [m],
+            TCP z-axis): the 1 kHz loop does its 3-vector arithmetic on these.
+        y: the same as an array, shape (6,) (built on first use).
         tcp_pos: TCP position in the world frame, a view of ``y[:3]`` [m].
         tcp_axis: TCP z-axis in the world frame (unit), a view of ``y[3:]``.
         J: TCP Jacobian, LOCAL_WORLD_ALIGNED, rows (linear, angular), shape (6, 7).
@@ -64,7 +66,7 @@ class RobotState:
             shape (6,) [m/s^2, rad/s^2].
     """
 
-    __slots__ = ("robot", "data", "q", "v", "y", "tcp_pos", "tcp_axis", "J", "acc_drift")
+    __slots__ = ("robot", "data", "q", "v", "y_list", "_y", "J", "acc_drift")
 
     def __init__(self, robot: RobotModel, data: pin.Data, q: np.ndarray, v: np.ndarray) -> None:
         model = robot.model
@@ -75,13 +77,28 @@ class RobotState:
         self.v = v
         pin.forwardKinematics(model, data, q, v, robot.zero_velocity)
         pin.computeJointJacobians(model, data)
-        H = pin.updateFramePlacement(model, data, fid).homogeneous
-        self.y = H[:3, 3:1:-1].T.ravel()  # columns (translation, z-axis): a copy out of data
-        self.tcp_pos = self.y[:3]
-        self.tcp_axis = self.y[3:]
-        # Pinocchio returns column-major arrays; a C-ordered copy keeps row slices BLAS-friendly.
-        self.J = np.ascontiguousarray(pin.getFrameJacobian(model, data, fid, _LWA))
+        H = pin.updateFramePlacement(model, data, fid).homogeneous.tolist()
+        self.y_list = [H[0][3], H[1][3], H[2][3], H[0][2], H[1][2], H[2][2]]
+        self._y: np.ndarray | None = None
+        self.J = pin.getFrameJacobian(model, data, fid, _LWA)
         self.acc_drift = pin.getFrameClassicalAcceleration(model, data, fid, _LWA).vector
+
+    @property
+    def y(self) -> np.ndarray:
+        """Task state (TCP position [m], TCP z-axis), shape (6,)."""
+        if self._y is None:
+            self._y = np.array(self.y_list)
+        return self._y
+
+    @property
+    def tcp_pos(self) -> np.ndarray:
+        """TCP position in the world frame, shape (3,) [m]."""
+        return self.y[:3]
+
+    @property
+    def tcp_axis(self) -> np.ndarray:
+        """TCP z-axis in the world frame (unit), shape (3,)."""
+        return self.y[3:]
 
     @property
     def tcp_vel(self) -> np.ndarray:
