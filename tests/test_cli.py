@@ -116,3 +116,27 @@ def test_run_directory_of_another_config_is_refused_untouched(tmp_path):
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "another configuration" in proc.stderr
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_submitit_local_launcher_runs_a_sweep(tmp_path):
+    sweep = tmp_path / "sweep"
+    proc = _run(
+        [
+            "-m",
+            "hydra/launcher=submitit_local",
+            "task=0,1",
+            "method=track",
+            "episodes=1",
+            "max_time=1",
+            f"hydra.sweep.dir={sweep}",
+        ],
+        tmp_path,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert len(list(sweep.glob("*/episodes.csv"))) == 2
+
+
+def test_slurm_launcher_config_composes(tmp_path):
+    proc = _run(["hydra/launcher=slurm", "--cfg", "hydra"], tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "SlurmLauncher" in proc.stdout and "cpus_per_task: 1" in proc.stdout
