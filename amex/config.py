@@ -12,9 +12,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from amex.control.osc import PD, OSCGains
-from amex.episode import LoopConfig
+from amex.episode import LoopConfig, MismatchConfig
 from amex.errors import ConfigError
 from amex.methods import METHODS, MethodConfig
+from amex.perception import PerceptionConfig, PredictionConfig
 from amex.plan.reference import PlanConfig
 from amex.robot import PANDA_Q0, ROBOTS
 from amex.scenario import TASKS, ScenarioConfig
@@ -70,6 +71,9 @@ class RunConfig:
         stop_radius: the episode stops within this distance of the goal; the paper's 0.03 m on
             its 5x larger scene, multiplied by ``scenario.scale`` [m].
         log: ``none`` or ``full`` (one MCAP file per episode).
+        perception: goal noise and latency (default exact).
+        prediction: constant-velocity Kalman prediction of the goal (default off).
+        mismatch: simulated arm versus the controller's model (default identical).
     """
 
     task: int = 0
@@ -78,6 +82,9 @@ class RunConfig:
     scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
     plan: PlanConfig = field(default_factory=PlanConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    prediction: PredictionConfig = field(default_factory=PredictionConfig)
+    mismatch: MismatchConfig = field(default_factory=MismatchConfig)
     episodes: int = 150
     seed: int = 0
     outer_hz: float = 100.0
@@ -129,6 +136,9 @@ def validate(config: RunConfig) -> None:
         raise ConfigError.invalid("robot", config.robot.name, ROBOTS)
     config.scenario.validate()
     config.loop.validate()
+    config.perception.validate()
+    config.prediction.validate()
+    config.mismatch.validate()
     plan = config.plan
     if not (plan.dt > 0 and plan.duration > 0):
         raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")

@@ -20,6 +20,7 @@ solver failures, end the episode with a recorded ``failure`` reason instead of r
 
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass
@@ -34,6 +35,7 @@ from amex.control.state import RobotState
 from amex.errors import AmexError, ConfigError, SimulationError
 from amex.methods.base import Method, Observation
 from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult
+from amex.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.robot import RobotModel
 from amex.scenario import Scenario
 
@@ -109,11 +111,48 @@ class Recorder(Protocol):
         """Called once when the episode ends, with its result."""
 
 
+@dataclass
+class MismatchConfig:
+    """How the simulated arm differs from the controller's model; defaults: not at all.
+
+    The paper's PR2 "does not accelerate as desired"; this reproduces that in simulation.
+
+    Attributes:
+        mass_scale: factor on every link's mass and inertia in the simulation [-].
+        friction: Coulomb friction (MuJoCo ``frictionloss``) at every joint [N m].
+        damping: viscous damping at every joint [N m s/rad].
+    """
+
+    mass_scale: float = 1.0
+    friction: float = 0.0
+    damping: float = 0.0
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for non-physical values."""
+        if not self.mass_scale > 0:
+            raise ConfigError.invalid("mismatch.mass_scale", self.mass_scale, "a factor > 0")
+        for key in ("friction", "damping"):
+            if not getattr(self, key) >= 0:
+                raise ConfigError.invalid(f"mismatch.{key}", getattr(self, key), "a value >= 0")
+
+
 class Simulation:
     """MuJoCo world for one scenario: the arm plus its obstacle spheres (mocap bodies)."""
 
-    def __init__(self, robot: RobotModel, scenario: Scenario, inner_hz: float) -> None:
-        self.model = robot.build_mujoco(scenario.n_obstacles, timestep=1.0 / inner_hz)
+    def __init__(
+        self,
+        robot: RobotModel,
+        scenario: Scenario,
+        inner_hz: float,
+        mismatch: MismatchConfig | None = None,
+    ) -> None:
+        # a private copy: obstacle sizes and mismatch are per episode, the compiled model is shared
+        self.model = copy.copy(robot.build_mujoco(scenario.n_obstacles, timestep=1.0 / inner_hz))
+        if mismatch is not None:
+            self.model.body_mass[:] *= mismatch.mass_scale
+            self.model.body_inertia[:] *= mismatch.mass_scale
+            self.model.dof_frictionloss[:] = mismatch.friction
+            self.model.dof_damping[:] = mismatch.damping
         for k, r in enumerate(scenario.obstacle_radii):
             gid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, f"obstacle_{k}")
             self.model.geom_size[gid, 0] = r
@@ -137,6 +176,9 @@ def run_episode(
     gains: OSCGains,
     loop: LoopConfig,
     recorder: Recorder | None = None,
+    perception: PerceptionConfig | None = None,
+    prediction: PredictionConfig | None = None,
+    mismatch: MismatchConfig | None = None,
 ) -> EpisodeResult:
     """Execute ``method`` in ``scenario`` and measure it (see :mod:`amex.metrics`).
 
@@ -147,8 +189,19 @@ def run_episode(
         gains: inner-controller gains, including the method's task gains.
         loop: rates and stopping rules.
         recorder: optional per-step observer (logs).
+        perception: goal noise and latency seen by the method (default: exact).
+        prediction: Kalman prediction of the perceived goal (default: off).
+        mismatch: how the simulated arm differs from the controller's model (default: none).
     """
-    sim = Simulation(robot, scenario, loop.inner_hz)
+    sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
+    perception = perception or PerceptionConfig()
+    prediction = prediction or PredictionConfig()
+    sensor = None
+    if not perception.exact or prediction.enabled:
+        noise_rng = np.random.default_rng(
+            np.random.SeedSequence([scenario.seed, scenario.task, scenario.env, 1])
+        )
+        sensor = GoalSensor(scenario.goal_at, perception, prediction, noise_rng)
     collision = CollisionModel(robot, scenario.obstacle_radii) if scenario.n_obstacles else None
     osc = OperationalSpaceController(robot, gains, collision)
     pdata = robot.model.createData()
@@ -198,13 +251,14 @@ def run_episode(
                 if collision is not None:
                     collision.set_obstacles(obstacles)
             if outer:
+                seen = goal if sensor is None else sensor.measure(t)
                 obs = Observation(
                     t=t,
                     q=q,
                     qd=v,
                     y=state.y,
                     yd=state.yd,
-                    goal=np.concatenate([goal, goal_axis]),
+                    goal=np.concatenate([seen, goal_axis]),
                     obstacles=obstacles,
                     obstacle_radii=radii,
                 )

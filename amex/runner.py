@@ -70,13 +70,20 @@ def run_one(
         context.plan.y[0, :3],
         context.plan.duration,
     )
+    world = {
+        "perception": config.perception,
+        "prediction": config.prediction,
+        "mismatch": config.mismatch,
+    }
     if log_path is None:
-        return run_episode(context.robot, method, scenario, config.gains(), config.loop)
+        return run_episode(context.robot, method, scenario, config.gains(), config.loop, **world)
     from amex.log import EpisodeLogger
 
     metadata = {"task": config.task, "method": config.method.name, "env": env, "seed": config.seed}
     with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
-        return run_episode(context.robot, method, scenario, config.gains(), config.loop, logger)
+        return run_episode(
+            context.robot, method, scenario, config.gains(), config.loop, logger, **world
+        )
 
 
 def run(
