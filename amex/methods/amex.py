@@ -77,7 +77,7 @@ number of spline control points (``analysis/bench_amex.py`` measures it).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -174,7 +174,7 @@ class AMEX(Method):
 
     def __init__(self, reference: np.ndarray, duration: float, dt: float, **params: Any) -> None:
         p = AMEXConfig()
-        names = _amex_param_names(AMEXConfig)
+        names = set(AMEXConfig.param_names())
         for key, value in params.items():
             if key not in names:
                 raise ConfigError.invalid("amex parameter", key, sorted(names))
@@ -351,9 +351,7 @@ class AMEX(Method):
         cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
     ) -> AMEX:
         """See :meth:`Method.from_plan`; the plan's 6-D tau_ref with the config's parameters."""
-        names = _amex_param_names(cls.config_class)
-        params = {k: getattr(config, k) for k in names if hasattr(config, k)}
-        return cls(plan.y, plan.duration, dt, **params)
+        return cls(plan.y, plan.duration, dt, **config.params())
 
     def reset(self, obs: Observation) -> None:
         """See :meth:`Method.reset`: :meth:`restart` (the first update reads y_0, g_0)."""
@@ -372,8 +370,3 @@ class AMEX(Method):
         return {"s": t.s, "delta_g": t.delta_g, "delta_y": t.delta_y, "y_star": t.y_star,
                 "yd_star": t.yd_star}  # fmt: skip
 
-
-def _amex_param_names(config_class: type[MethodConfig]) -> set[str]:
-    """Return the AMEX parameters of ``config_class``: its fields minus :class:`MethodConfig`'s."""
-    base = {f.name for f in fields(MethodConfig)}
-    return {f.name for f in fields(config_class)} - base

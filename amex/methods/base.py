@@ -8,7 +8,7 @@ touches the simulator, so it can be driven from any robot loop, with plain numpy
 from __future__ import annotations
 
 import abc
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -58,6 +58,16 @@ class MethodConfig:
     name: str = ""
     pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
     dir: PD = field(default_factory=lambda: PD(1.0, 100.0, 0.5))
+
+    @classmethod
+    def param_names(cls) -> list[str]:
+        """The method's own parameters: the fields of ``cls`` that :class:`MethodConfig` lacks."""
+        base = {f.name for f in fields(MethodConfig)}
+        return [f.name for f in fields(cls) if f.name not in base]
+
+    def params(self) -> dict[str, Any]:
+        """The method's own parameters and their values (for a method's constructor)."""
+        return {name: getattr(self, name) for name in self.param_names()}
 
 
 class Method(abc.ABC):

@@ -38,7 +38,7 @@ DMP at the step times up to a quadrature error set by ``quad_step``, not by h, a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -361,9 +361,7 @@ class DMP(Method):
         cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
     ) -> DMP:
         """See :meth:`Method.from_plan`; trains on ``plan.y`` with the config's DMP parameters."""
-        names = _dmp_param_names(cls.config_class)
-        params = {k: getattr(config, k) for k in names if hasattr(config, k)}
-        return cls(plan.y, plan.duration, dt, **params)
+        return cls(plan.y, plan.duration, dt, **config.params())
 
     def reset(self, obs: Observation) -> None:
         """See :meth:`Method.reset`; the DMP starts at the measured ``obs.y`` with ``obs.yd``."""
@@ -383,15 +381,10 @@ class DMP(Method):
         return {"phase": self._x, "phase_rate": self._rate}
 
 
-def _dmp_param_names(config_class: type[MethodConfig]) -> list[str]:
-    """The DMP parameters of ``config_class``: its fields less those of :class:`MethodConfig`."""
-    base = {f.name for f in fields(MethodConfig)}
-    return [f.name for f in fields(config_class) if f.name not in base]
-
 
 def _checked_params(params: dict[str, Any]) -> DMPConfig:
     """``params`` over the default DMP parameters, validated (:class:`ConfigError` if not)."""
-    valid = _dmp_param_names(DMPConfig)
+    valid = DMPConfig.param_names()
     p = DMPConfig()
     for key, value in params.items():
         if key not in valid:
