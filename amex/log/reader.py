@@ -1,0 +1,443 @@
+"""Reading episode logs back, tolerantly: intact files through the index, cut files chunk by chunk.
+
+:func:`read_log` first tries the ``mcap`` package's indexed (seeking) reader. If the summary
+section cannot be read, because the writer was killed (SIGKILL, power loss) and the file ends
+mid-chunk without footer, it streams the file record by record
+(:class:`mcap.stream_reader.StreamReader`, chunk CRCs checked) and keeps every record before the
+first incomplete or damaged one: all completed chunks, i.e. all but the last ~64 KiB. Short reads
+raise instead of being passed on, so a cut record is never returned as a shorter one.
+:func:`recover` writes what was read as a new, indexed MCAP file.
+
+JSON channels are decoded when read; protobuf channels (the Foxglove schemas) stay bytes until
+:meth:`LogData.decoded` decodes them with their own schema (:mod:`amex.log.protobuf`, no protobuf
+package needed); :meth:`LogData.joints` gives the joint states as arrays.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import struct
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, NamedTuple
+
+import numpy as np
+from mcap.reader import SeekingReader
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+from mcap.writer import CompressionType, Writer
+
+from amex.errors import AmexError
+from amex.log.protobuf import ProtobufSchema
+
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+
+
+class LogError(AmexError):
+    """A log file cannot be read or written; the message names the file and the problem."""
+
+
+class LogNotFoundError(LogError):
+    """The log file does not exist."""
+
+
+class EmptyLogError(LogError):
+    """The log file has no bytes."""
+
+
+class NotMcapError(LogError):
+    """The file is not an MCAP file (wrong magic bytes)."""
+
+
+class TruncatedLogError(LogError):
+    """The file was cut before any message could be recovered."""
+
+
+class LogExistsError(LogError):
+    """Refusing to overwrite an existing file."""
+
+
+class ChannelInfo(NamedTuple):
+    """One channel (topic) of a log."""
+
+    topic: str
+    schema_name: str
+    message_encoding: str
+    message_count: int
+
+
+class LogMessage(NamedTuple):
+    """One message: log time [ns] (simulation time) and data (decoded JSON, else bytes)."""
+
+    log_time: int
+    data: Any
+
+
+@dataclass(frozen=True)
+class LogData:
+    """Everything read from one log file.
+
+    Attributes:
+        path: the file read.
+        size: its size [bytes].
+        channels: per topic, its schema, encoding and message count.
+        messages: per topic, the messages in log-time order.
+        metadata: MCAP metadata records by name; values parsed from JSON where they are JSON.
+        truncated: True if the file was cut (read by streaming; see :attr:`note`).
+        note: why the file counts as truncated, and where it was cut.
+    """
+
+    path: Path
+    size: int
+    channels: dict[str, ChannelInfo]
+    messages: dict[str, list[LogMessage]]
+    metadata: dict[str, dict[str, Any]]
+    truncated: bool = False
+    note: str = ""
+    _raw: _RawLog | None = field(default=None, repr=False, compare=False)
+    _decoded: dict[str, list[LogMessage]] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def message_count(self) -> int:
+        """Number of messages read (recovered, for a truncated file)."""
+        return sum(c.message_count for c in self.channels.values())
+
+    @property
+    def start_time(self) -> float:
+        """Earliest log time [s] (simulation time), 0 without messages."""
+        times = [m[0].log_time for m in self.messages.values() if m]
+        return min(times) * 1e-9 if times else 0.0
+
+    @property
+    def end_time(self) -> float:
+        """Latest log time [s] (simulation time), 0 without messages."""
+        times = [m[-1].log_time for m in self.messages.values() if m]
+        return max(times) * 1e-9 if times else 0.0
+
+    @property
+    def duration(self) -> float:
+        """``end_time - start_time`` [s]."""
+        return self.end_time - self.start_time
+
+    @property
+    def outcome(self) -> dict[str, Any] | None:
+        """The ``outcome`` metadata record (or the ``/episode`` message); None if never written."""
+        if "outcome" in self.metadata:
+            return self.metadata["outcome"]
+        episode = self.messages.get("/episode")
+        if episode and isinstance(episode[-1].data, dict):
+            return dict(episode[-1].data)
+        return None
+
+    def times(self, topic: str) -> np.ndarray:
+        """Log times of ``topic``'s messages [s], shape (n,)."""
+        return np.array([m.log_time for m in self.messages.get(topic, [])], dtype=float) * 1e-9
+
+    def decoded(self, topic: str) -> list[LogMessage]:
+        """``topic``'s messages with decoded data: JSON as read, protobuf through its schema.
+
+        Protobuf messages become dicts (field name -> value; proto3 leaves out fields at their
+        default, e.g. a zero coordinate); undecodable messages stay bytes. Cached.
+        """
+        messages = self.messages.get(topic, [])
+        info = self.channels.get(topic)
+        if info is None or info.message_encoding != "protobuf" or self._raw is None:
+            return messages
+        if topic not in self._decoded:
+            schema = next(
+                (
+                    self._raw.schemas.get(c.schema_id)
+                    for c in self._raw.channels.values()
+                    if c.topic == topic
+                ),
+                None,
+            )
+            decoded = list(messages)
+            if schema is not None and schema.encoding == "protobuf":
+                try:
+                    decoder = ProtobufSchema(schema.data)
+                    decoded = [
+                        LogMessage(m.log_time, decoder.decode(schema.name, m.data))
+                        for m in messages
+                    ]
+                except (ValueError, IndexError, struct.error, UnicodeDecodeError):
+                    decoded = list(messages)  # a damaged schema or message: bytes it is
+            self._decoded[topic] = decoded
+        return self._decoded[topic]
+
+    def joints(self, field: str, topic: str = "/joint_states") -> np.ndarray:
+        """One field of the joint states over time, shape (n, joints).
+
+        Args:
+            field: ``position`` [rad], ``velocity`` [rad/s], ``acceleration`` [rad/s^2] or
+                ``effort`` [N m].
+            topic: the ``foxglove.JointStates`` channel.
+        """
+        rows = [
+            [j.get(field, 0.0) for j in m.data.get("joints", [])]
+            for m in self.decoded(topic)
+            if isinstance(m.data, dict)
+        ]
+        width = max((len(r) for r in rows), default=0)
+        out = np.full((len(rows), width), np.nan)
+        for i, row in enumerate(rows):
+            out[i, : len(row)] = row
+        return out
+
+    def reference_path(self) -> np.ndarray:
+        """The reference plan's TCP positions (``/reference``), shape (N + 1, 3) [m], or (0, 3)."""
+        messages = self.messages.get("/reference", [])
+        if messages and isinstance(messages[0].data, dict) and messages[0].data.get("y"):
+            return np.asarray(messages[0].data["y"], dtype=float)[:, :3]
+        return np.zeros((0, 3))
+
+    def series(self, topic: str, key: str) -> np.ndarray:
+        """``data[key]`` of every message of ``topic`` stacked, shape (n,) or (n, k).
+
+        Missing or null values become NaN (so that rows stay aligned with :meth:`times`).
+        """
+        rows = []
+        width = None
+        for m in self.decoded(topic):
+            value = m.data.get(key) if isinstance(m.data, dict) else None
+            rows.append(value)
+            if value is not None and width is None:
+                width = len(value) if isinstance(value, list) else 0
+        if width is None:
+            return np.full(len(rows), np.nan)
+        out = np.full((len(rows), width) if width else len(rows), np.nan)
+        for i, value in enumerate(rows):
+            if value is None:
+                continue
+            if width:
+                out[i] = [np.nan if v is None else v for v in value]
+            else:
+                out[i] = np.nan if value is None else value
+        return out
+
+
+@dataclass
+class _RawLog:
+    """Records as read, for :func:`recover`."""
+
+    schemas: dict[int, Schema] = field(default_factory=dict)
+    channels: dict[int, Channel] = field(default_factory=dict)
+    messages: list[Message] = field(default_factory=list)
+    metadata: list[Metadata] = field(default_factory=list)
+
+
+class _ExactReader:
+    """A file wrapper whose short reads raise: the mcap stream reader would accept them."""
+
+    def __init__(self, f: IO[bytes]) -> None:
+        self._f = f
+
+    def read(self, n: int = -1) -> bytes:
+        data = self._f.read(n)
+        if n > 0 and len(data) != n:
+            raise EOFError(f"file ends {n - len(data)} bytes into a record")
+        return data
+
+
+def _check_file(path: Path) -> int:
+    """Size of ``path``, or the error that says why it is no log."""
+    if not path.exists():
+        raise LogNotFoundError(f"log file not found: {path}")
+    if path.is_dir():
+        raise LogError(f"{path} is a directory, not a log file")
+    size = path.stat().st_size
+    if size == 0:
+        raise EmptyLogError(f"log file is empty (0 bytes): {path}")
+    with open(path, "rb") as f:
+        head = f.read(len(MCAP_MAGIC))
+    if head != MCAP_MAGIC[: len(head)] or (len(head) < len(MCAP_MAGIC) and size >= 8):
+        raise NotMcapError(f"not an MCAP file (no MCAP magic bytes at the start): {path}")
+    if len(head) < len(MCAP_MAGIC):
+        raise TruncatedLogError(f"log file is truncated inside the MCAP magic ({size} B): {path}")
+    return size
+
+
+def _read_indexed(f: IO[bytes]) -> _RawLog | None:
+    """All records through the summary index; None if the file has no readable summary."""
+    try:
+        reader = SeekingReader(f)
+        if reader.get_summary() is None:
+            return None
+        raw = _RawLog()
+        for schema, channel, message in reader.iter_messages(log_time_order=True):
+            if schema is not None:
+                raw.schemas.setdefault(schema.id, schema)
+            raw.channels.setdefault(channel.id, channel)
+            raw.messages.append(message)
+        raw.metadata = list(reader.iter_metadata())
+        summary = reader.get_summary()
+        if summary is not None:  # channels without messages still count as channels
+            for sid, schema in summary.schemas.items():
+                raw.schemas.setdefault(sid, schema)
+            for cid, channel in summary.channels.items():
+                raw.channels.setdefault(cid, channel)
+        return raw
+    except Exception:  # any failure: fall back to the tolerant stream
+        return None
+
+
+def _read_stream(f: IO[bytes]) -> tuple[_RawLog, str]:
+    """Every record up to the first incomplete or damaged one, and why reading stopped there."""
+    raw = _RawLog()
+    reader = StreamReader(_ExactReader(f), validate_crcs=True)  # type: ignore[arg-type]
+    try:
+        for record in reader.records:
+            if isinstance(record, Schema):
+                raw.schemas[record.id] = record
+            elif isinstance(record, Channel):
+                raw.channels[record.id] = record
+            elif isinstance(record, Message):
+                if record.channel_id in raw.channels:
+                    raw.messages.append(record)
+            elif isinstance(record, Metadata):
+                raw.metadata.append(record)
+    except Exception as e:  # a cut or corrupt record ends the readable part
+        return raw, _reason(e)
+    return raw, ""
+
+
+def _reason(error: Exception) -> str:
+    """Why streaming stopped, in words."""
+    text = str(error)
+    if "18446744073709551615" in text:  # the writer's placeholder length of an open chunk
+        return "an unfinished chunk"
+    if isinstance(error, EOFError) or type(error).__name__ == "EndOfFile":
+        return "a record cut short"
+    if "CRC" in type(error).__name__ or "crc" in text.lower():
+        return "a damaged chunk (CRC mismatch)"
+    return f"{type(error).__name__}: {text}"[:200]
+
+
+def _decode(raw: _RawLog, path: Path, size: int, truncated: bool, note: str) -> LogData:
+    raw.messages.sort(key=lambda m: (m.log_time, m.channel_id, m.sequence))
+    by_topic: dict[str, list[LogMessage]] = {c.topic: [] for c in raw.channels.values()}
+    for message in raw.messages:
+        channel = raw.channels[message.channel_id]
+        data: Any = message.data
+        if channel.message_encoding == "json":
+            with contextlib.suppress(ValueError):  # invalid JSON stays bytes
+                data = json.loads(data)
+        by_topic[channel.topic].append(LogMessage(message.log_time, data))
+    channels = {}
+    for channel in raw.channels.values():
+        schema = raw.schemas.get(channel.schema_id)
+        channels[channel.topic] = ChannelInfo(
+            channel.topic,
+            schema.name if schema is not None else "",
+            channel.message_encoding,
+            len(by_topic[channel.topic]),
+        )
+    metadata: dict[str, dict[str, Any]] = {}
+    for record in raw.metadata:
+        metadata.setdefault(record.name, {}).update(
+            {k: _parse(v) for k, v in record.metadata.items()}
+        )
+    return LogData(path, size, channels, by_topic, metadata, truncated, note, raw)
+
+
+def _parse(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except ValueError:
+        return text
+
+
+def read_log(path: Path | str) -> LogData:
+    """Read a log: intact files through the index, cut files up to their last complete chunk.
+
+    Raises:
+        LogNotFoundError, EmptyLogError, NotMcapError: the file is missing, empty or not MCAP.
+        TruncatedLogError: the file was cut before its first complete chunk (nothing to read).
+    """
+    path = Path(path)
+    size = _check_file(path)
+    try:
+        with open(path, "rb") as f:
+            raw = _read_indexed(f)
+            if raw is not None:
+                return _decode(raw, path, size, False, "")
+            f.seek(0)
+            raw, reason = _read_stream(f)
+    except OSError as e:
+        raise LogError(f"cannot read {path}: {e.strerror or e}") from e
+    note = f"cut at {size} bytes, in {reason}" if reason else "no summary section"
+    if not raw.messages:
+        raise TruncatedLogError(
+            f"log file is truncated before its first complete chunk ({size} bytes), "
+            f"nothing to recover: {path}"
+        )
+    return _decode(raw, path, size, bool(reason), note)
+
+
+def recover(src: Path | str, dst: Path | str) -> LogData:
+    """Rewrite the readable part of ``src`` as a valid, indexed MCAP file ``dst``.
+
+    Schemas, channels, messages (in log-time order) and metadata records are copied unchanged;
+    a metadata record ``recovery`` says where they came from. ``dst`` must not exist.
+
+    Returns:
+        What was read from ``src`` (``truncated`` tells whether it was cut).
+    """
+    src, dst = Path(src), Path(dst)
+    data = read_log(src)
+    if dst.exists():
+        raise LogExistsError(f"output file {dst} already exists; not overwriting it")
+    raw = data._raw
+    if raw is None:  # pragma: no cover - read_log always keeps the records
+        raise LogError(f"no records kept while reading {src}")
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dst.with_name(dst.name + ".part")
+    try:
+        with open(tmp, "wb") as f:
+            writer = Writer(f, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
+            writer.start(profile="", library="amex-log recover")
+            schema_ids = {
+                sid: writer.register_schema(s.name, s.encoding, s.data)
+                for sid, s in sorted(raw.schemas.items())
+            }
+            channel_ids = {
+                cid: writer.register_channel(
+                    c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0), dict(c.metadata)
+                )
+                for cid, c in sorted(raw.channels.items())
+            }
+            for record in raw.metadata:
+                writer.add_metadata(record.name, dict(record.metadata))
+            writer.add_metadata(
+                "recovery",
+                {
+                    "source": json.dumps(str(src)),
+                    "source_bytes": json.dumps(data.size),
+                    "truncated": json.dumps(data.truncated),
+                    "messages": json.dumps(len(raw.messages)),
+                    "note": json.dumps(data.note),
+                },
+            )
+            for m in raw.messages:
+                writer.add_message(
+                    channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
+                )
+            writer.finish()
+        if dst.exists():
+            raise LogExistsError(f"output file {dst} appeared while writing; kept {tmp}")
+        os.replace(tmp, dst)
+    except OSError as e:
+        raise LogError(f"cannot write {dst}: {e.strerror or e}") from e
+    return data
+
+
+def topics_with_numbers(data: LogData) -> Iterable[str]:
+    """The JSON topics of ``data`` whose messages are objects (exportable as tables)."""
+    for topic, info in sorted(data.channels.items()):
+        if info.message_encoding == "json" and any(
+            isinstance(m.data, dict) for m in data.messages[topic]
+        ):
+            yield topic

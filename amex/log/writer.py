@@ -1,0 +1,465 @@
+"""Per-episode MCAP logs that Foxglove opens as a 3-D scene with plots (foxglove-sdk writer).
+
+One file per episode, one ``foxglove.Context`` per file. Every outer step (100 Hz) writes, with the
+simulation time both as the MCAP log time and as the timestamp inside each message (Foxglove's 3D
+panel looks transforms up by the latter):
+
+==================== ========================= ==================================================
+topic                schema                    content
+==================== ========================= ==================================================
+``/tf``              foxglove.FrameTransforms  ``world -> panda_link0`` and one transform per URDF
+                                               joint, parent/child = the URDF link names
+``/joint_states``    foxglove.JointStates      q, q_dot, q_ddot, tau (position, velocity,
+                                               acceleration, effort)
+``/scene/world``     foxglove.SceneUpdate      goal (success sphere) and obstacle spheres, when
+                                               they moved > 1 mm, else once a second
+``/scene/path``      foxglove.SceneUpdate      executed TCP path (line, every ``path_every`` steps)
+``/scene/plan``      foxglove.SceneUpdate      the method's current plan: an (k, 3) array under
+                                               ``internals()["plan"]`` (<= 100 points shown)
+``/scene/reference`` foxglove.SceneUpdate      the reference plan's TCP path (every second)
+``/tcp``             JSON                      TCP position, z-axis, velocity, distance to goal
+``/goal``            JSON                      goal position and distance to it
+``/command``         JSON                      the command: y*, y_dot* (and q*, q_dot* if any)
+``/method``          JSON                      the method's ``internals()`` (numbers, small lists)
+``/reference``       JSON                      the reference plan ``y`` and ``dt`` (once, t = 0)
+``/episode``         JSON                      the episode's result (once, at the end)
+==================== ========================= ==================================================
+
+MCAP metadata records: ``episode`` (the caller's metadata: task, method, env, seed, ...),
+``scenario``, ``robot``, ``log`` (written first) and ``outcome`` (written last: the result, or
+why the log ended early). Values are JSON texts.
+
+Cost, measured on a Task-3 DMP episode: ~100-150 us per outer step (the floats' text formatting
+and the Foxglove message objects dominate), ~20 % of an episode's run time; ~110 kB per second
+of simulation.
+
+Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
+finished log never has the suffix, and no existing file is ever overwritten: an existing
+``<path>`` or ``<path>.part`` (a rerun, or a resumed run's interrupted episode) is renamed to
+``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, zstd-compressed: after SIGKILL at
+most the last chunk (~0.5 s of simulation) is lost, and :func:`amex.log.reader.read_log` recovers
+the rest. The log is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job): a
+handler is installed while the log is open (main thread only), finishes the file, restores the
+previous handler and re-delivers the signal to it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import foxglove
+import numpy as np
+from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneUpdateChannel
+from foxglove.mcap import MCAPCompression, MCAPWriteOptions
+from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
+
+import amex
+from amex.log import messages as M
+from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
+from amex.log.reader import LogError, LogExistsError
+
+if TYPE_CHECKING:
+    from amex.episode import StepRecord
+    from amex.metrics import EpisodeResult
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
+    from amex.scenario import Scenario
+
+CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can lose
+PART_SUFFIX = ".part"
+COMPRESSION = MCAPCompression.Zstd
+COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % more time
+SUCCESS_RADIUS = 0.03  # [m] drawn around the goal (the paper's success radius)
+
+log = logging.getLogger(__name__)
+
+
+def set_aside(path: Path) -> Path:
+    """Rename an existing ``path`` to the first free ``<stem>.old<n><suffixes>``; say so.
+
+    A log is never overwritten: a rerun or a resumed run (whose interrupted episode left a
+    ``.part`` file) keeps the earlier file next to the new one, with a warning.
+    """
+    name = path.name
+    stem, dot, rest = name.partition(".")
+    for n in range(1, 10_000):
+        target = path.with_name(f"{stem}.old{n}{dot}{rest}")
+        if not target.exists():
+            os.rename(path, target)
+            log.warning("log %s already existed; kept it as %s", path, target.name)
+            return target
+    raise LogExistsError(f"log file {path} exists and no free name is left to keep it")
+
+
+class EpisodeLogger:
+    """Recorder (see :class:`amex.episode.Recorder`) writing one episode as an MCAP file.
+
+    Use as a context manager around :func:`amex.episode.run_episode`; the file appears at
+    ``path`` when the context exits (or on SIGTERM), and ``<path>.part`` holds it until then.
+
+    Args:
+        path: the log file to create (parent directories are created); an existing file of that
+            name, or its ``.part``, is kept under another name (:func:`set_aside`).
+        robot: the arm (URDF link names for the transforms, joint names).
+        plan: the reference plan (drawn as a line; its ``y`` and ``dt`` are logged once).
+        scenario: the environment (goal and obstacle motion, obstacle radii).
+        metadata: the episode's identity and configuration (JSON-able values), written as the
+            MCAP metadata record ``episode``.
+        path_every: outer steps between updates of the executed-path and plan lines.
+        max_line_points: plan lines are decimated to at most this many points.
+    """
+
+    def __init__(
+        self,
+        path: Path | str,
+        robot: RobotModel,
+        plan: ReferencePlan,
+        scenario: Scenario,
+        metadata: dict[str, Any],
+        *,
+        path_every: int = 5,
+        max_line_points: int = 100,
+    ) -> None:
+        self.path = Path(path)
+        self.part_path = self.path.with_name(self.path.name + PART_SUFFIX)
+        for existing in (self.path, self.part_path):
+            if existing.exists():
+                set_aside(existing)
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise LogError(f"cannot create the log directory {self.path.parent}: {e}") from e
+        self._scenario = scenario
+        self._links = LinkTransforms(robot)
+        self._joint_names = list(robot.joint_names)
+        self._path_every = max(1, int(path_every))
+        self._max_line_points = max(2, int(max_line_points))
+        self._reference = M.points(np.asarray(plan.y)[:, :3], len(plan.y))
+        self._path_points: list[Point3] = []
+        self._steps = 0
+        self._t = 0.0
+        self._next_reference = 0.0
+        self._outcome_written = False
+        self._closed = True
+        self._world_key: list[float] | None = None
+        self._obstacles_move = bool(np.any(scenario.obstacle_velocity))
+        self._world_time = 0.0
+        self._last_tcp: tuple[float, float, float] | None = None
+        self._tcp_json = M.json_template(
+            [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
+        )
+        self._goal_json = M.json_template([("t", 0), ("position", 3), ("distance", 0)])
+
+        self._context = foxglove.Context()
+        options = MCAPWriteOptions(
+            compression=COMPRESSION,
+            chunk_size=CHUNK_SIZE,
+            compression_threads=0,
+            compression_level=COMPRESSION_LEVEL,
+            profile="",
+        )
+        try:
+            self._writer = foxglove.open_mcap(
+                self.part_path, context=self._context, writer_options=options
+            )
+        except Exception as e:  # foxglove raises its own error types for I/O failures
+            raise LogError(f"cannot create the log file {self.part_path}: {e}") from e
+        self._closed = False
+        ctx = self._context
+        self._tf = FrameTransformsChannel("/tf", context=ctx)
+        self._joint_states = JointStatesChannel("/joint_states", context=ctx)
+        self._scene_world = SceneUpdateChannel("/scene/world", context=ctx)
+        self._scene_path = SceneUpdateChannel("/scene/path", context=ctx)
+        self._scene_plan = SceneUpdateChannel("/scene/plan", context=ctx)
+        self._scene_reference = SceneUpdateChannel("/scene/reference", context=ctx)
+        self._json = {
+            topic: foxglove.Channel(topic, schema=schema, context=ctx)
+            for topic, schema in M.json_schemas(robot.nv).items()
+        }
+        self._command_json: dict[tuple[bool, ...], str] = {}
+        self._previous_handler: Any = None
+        self._install_sigterm()
+        try:
+            self._write_header(robot, plan, scenario, metadata)
+        except BaseException:
+            self.close({"status": "error", "error": "could not write the log header"})
+            raise
+
+    # -- lifecycle -------------------------------------------------------------------------
+
+    def __enter__(self) -> EpisodeLogger:
+        return self
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
+        if exc_type is None:
+            self.close()
+        else:
+            self.close({"status": "interrupted", "error": f"{exc_type.__name__}: {exc}"})
+
+    @property
+    def closed(self) -> bool:
+        """True once the file is finished (renamed to :attr:`path`)."""
+        return self._closed
+
+    def close(self, outcome: dict[str, Any] | None = None) -> None:
+        """Finish the file and rename it to :attr:`path` (idempotent).
+
+        Args:
+            outcome: written as the ``outcome`` metadata record if :meth:`finish` did not write
+                one (e.g. ``{"status": "interrupted", ...}``).
+        """
+        if self._closed:
+            return
+        self._closed = True
+        self._restore_sigterm()
+        try:
+            if not self._outcome_written:
+                info = {"status": "incomplete", "steps": self._steps, "t": self._t}
+                info.update(outcome or {})
+                self._write_metadata("outcome", info)
+            for channel in self._all_channels():
+                channel.close()
+            self._writer.close()
+        finally:
+            if self.path.exists():  # appeared meanwhile: keep both, say where the log is
+                raise LogExistsError(
+                    f"log file {self.path} appeared while logging; the log is in {self.part_path}"
+                )
+            os.replace(self.part_path, self.path)
+
+    def _all_channels(self) -> list[Any]:
+        return [
+            self._tf,
+            self._joint_states,
+            self._scene_world,
+            self._scene_path,
+            self._scene_plan,
+            self._scene_reference,
+            *self._json.values(),
+        ]
+
+    def _install_sigterm(self) -> None:
+        if threading.current_thread() is not threading.main_thread():
+            return  # signal handlers can only be set from the main thread
+        self._previous_handler = signal.getsignal(signal.SIGTERM)
+        signal.signal(signal.SIGTERM, self._on_sigterm)
+
+    def _restore_sigterm(self) -> None:
+        if self._previous_handler is None:
+            return
+        previous, self._previous_handler = self._previous_handler, None
+        if signal.getsignal(signal.SIGTERM) == self._on_sigterm:
+            signal.signal(signal.SIGTERM, previous)
+
+    def _on_sigterm(self, signum: int, frame: Any) -> None:
+        previous = self._previous_handler
+        self.close({"status": "terminated", "signal": "SIGTERM"})
+        if callable(previous):
+            previous(signum, frame)
+        elif previous != signal.SIG_IGN:  # default action: die of SIGTERM, as without us
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    # -- content ---------------------------------------------------------------------------
+
+    def _write_metadata(self, name: str, values: dict[str, Any]) -> None:
+        self._writer.write_metadata(
+            name, {str(k): json.dumps(M.jsonable(v)) for k, v in values.items()}
+        )
+
+    def _write_header(
+        self, robot: RobotModel, plan: ReferencePlan, scenario: Scenario, metadata: dict[str, Any]
+    ) -> None:
+        self._write_metadata("episode", dict(metadata))
+        self._write_metadata(
+            "scenario",
+            {
+                "task": scenario.task,
+                "env": scenario.env,
+                "seed": scenario.seed,
+                "goal_start": scenario.goal_start,
+                "goal_velocity": scenario.goal_velocity,
+                "goal_stop_time": scenario.goal_stop_time,
+                "goal_axis": scenario.goal_axis,
+                "obstacle_start": scenario.obstacle_start,
+                "obstacle_velocity": scenario.obstacle_velocity,
+                "obstacle_radii": scenario.obstacle_radii,
+            },
+        )
+        self._write_metadata(
+            "robot",
+            {
+                "name": robot.name,
+                "urdf_path": robot.urdf_path,
+                "joint_names": self._joint_names,
+                "q0": robot.q0,
+                "links": [list(link) for link in self._links.links],
+            },
+        )
+        self._write_metadata(
+            "log",
+            {
+                "amex_version": amex.__version__,
+                "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "time": "simulation time [s] since the episode start",
+                "world_frame": WORLD_FRAME,
+            },
+        )
+        y = np.asarray(plan.y, dtype=float)
+        rows = ",".join("[" + ",".join(M.NUM % v for v in row) + "]" for row in y.tolist())
+        text = f'{{"dt":{float(plan.dt)!r},"duration":{float(plan.duration)!r},"y":[{rows}]}}'
+        self._json["/reference"].base.log(text.encode(), 0)
+        self._publish_world(0.0, scenario.goal_at(0.0), scenario.obstacles_at(0.0))
+        self._publish_reference(0.0)
+
+    def _publish_world(self, t: float, goal: np.ndarray, obstacles: np.ndarray) -> None:
+        """Goal and obstacles: when they moved (> 1 mm) or a second passed since last time."""
+        gx, gy, gz = goal[:3].tolist()
+        key = [gx, gy, gz]
+        if self._obstacles_move:
+            key += np.asarray(obstacles, dtype=float).ravel().tolist()
+        last = self._world_key
+        if last is not None and t < self._world_time + 1.0:
+            if len(key) == 3:  # the common case, without a generator
+                moved = abs(gx - last[0]) + abs(gy - last[1]) + abs(gz - last[2])
+            else:
+                moved = sum(abs(a - b) for a, b in zip(key, last, strict=True))
+            if moved < 1e-3:
+                return
+        self._world_key, self._world_time = key, t
+        stamp = sim_stamp(t)
+        entities = [
+            SceneEntity(
+                timestamp=stamp,
+                frame_id=WORLD_FRAME,
+                id="goal",
+                spheres=[
+                    M.sphere((gx, gy, gz), 2 * SUCCESS_RADIUS, M.GOAL_COLOR),
+                    M.sphere((gx, gy, gz), 0.01, M.GOAL_DOT_COLOR),
+                ],
+            )
+        ]
+        radii = self._scenario.obstacle_radii
+        if len(radii):
+            spheres = [
+                M.sphere(c, 2 * float(r), M.OBSTACLE_COLOR)
+                for c, r in zip(np.asarray(obstacles).tolist(), radii.tolist(), strict=False)
+            ]
+            entities.append(
+                SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id="obstacles", spheres=spheres)
+            )
+        self._scene_world.log(SceneUpdate(entities=entities), log_time=round(t * 1e9))
+
+    def _publish_reference(self, t: float) -> None:
+        stamp = sim_stamp(t)
+        update = M.line_update(stamp, "reference", self._reference, M.REFERENCE_COLOR, 2.0)
+        self._scene_reference.log(update, log_time=round(t * 1e9))
+        self._next_reference = t + 1.0
+
+    def record(self, step: StepRecord) -> None:
+        """Log one outer step (see the module docstring for what goes where)."""
+        if self._closed:
+            return
+        t = step.t
+        ns = round(t * 1e9)
+        stamp = sim_stamp(t)
+        state = step.state
+        q, v = state.q, state.v
+        self._tf.log(self._links.message(q, stamp), log_time=ns)
+
+        qs, vs = q.tolist(), v.tolist()
+        qdd, tau = np.asarray(step.qacc).tolist(), np.asarray(step.tau).tolist()
+        joints = [
+            JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
+            for n, a, b, c, d in zip(self._joint_names, qs, vs, qdd, tau, strict=False)
+        ]
+        self._joint_states.log(JointStates(timestamp=stamp, joints=joints), log_time=ns)
+
+        obs = step.observation
+        goal = obs.goal[:3]
+        y, yd = obs.y.tolist(), obs.yd.tolist()  # (TCP position, z-axis) and their rates
+        tcp = y[:3]
+        gx, gy, gz = goal.tolist()
+        distance = math.dist(tcp, (gx, gy, gz))
+        self._log_numbers("/tcp", self._tcp_json, (t, *y, *yd[:3], distance), ns)
+        self._log_numbers("/goal", self._goal_json, (t, gx, gy, gz, distance), ns)
+        self._log_command(t, step.command, ns)
+
+        internals = dict(step.internals)
+        plan = internals.pop("plan", None)
+        method: dict[str, Any] = {"t": t}
+        for key, value in internals.items():
+            if isinstance(value, np.ndarray):
+                if value.size > 64:
+                    continue  # large arrays do not belong in a per-step JSON message
+                value = value.tolist()
+            method[key] = value
+        self._json["/method"].base.log(M.dumps(method), ns)
+
+        self._publish_world(t, goal, obs.obstacles)
+        self._last_tcp = (tcp[0], tcp[1], tcp[2])
+        if self._steps % self._path_every == 0:
+            self._path_points.append(Point3(x=tcp[0], y=tcp[1], z=tcp[2]))
+            self._publish_path(t)
+            if isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3:
+                points = M.points(plan, self._max_line_points)
+                self._scene_plan.log(
+                    M.line_update(stamp, "plan", points, M.PLAN_COLOR, 3.0), log_time=ns
+                )
+        if t >= self._next_reference:
+            self._publish_reference(t)
+        self._steps += 1
+        self._t = t
+
+    def _log_command(self, t: float, command: Any, ns: int) -> None:
+        """y*, y_dot* (and q*, q_dot*): whichever parts the command has."""
+        present = tuple(part is not None for part in command)
+        template = self._command_json.get(present)
+        parts = [p.tolist() for p in command if p is not None]
+        if template is None:
+            keys = [
+                k
+                for k, p in zip(("y_star", "yd_star", "q_star", "qd_star"), present, strict=False)
+                if p
+            ]
+            fields = [("t", 0), *((k, len(v)) for k, v in zip(keys, parts, strict=True))]
+            template = self._command_json[present] = M.json_template(fields)
+        self._log_numbers("/command", template, (t, *(x for p in parts for x in p)), ns)
+
+    def _log_numbers(self, topic: str, template: str, values: tuple[float, ...], ns: int) -> None:
+        if math.isfinite(sum(values)):
+            data = (template % values).encode()
+        else:  # NaN/inf is not JSON: null instead (slow path, rare)
+            data = (
+                template.replace(M.NUM, "%s")
+                % tuple(repr(v) if math.isfinite(v) else "null" for v in values)
+            ).encode()
+        self._json[topic].base.log(data, ns)
+
+    def _publish_path(self, t: float) -> None:
+        if self._path_points:
+            update = M.line_update(sim_stamp(t), "tcp_path", self._path_points, M.PATH_COLOR, 3.0)
+            self._scene_path.log(update, log_time=round(t * 1e9))
+
+    def finish(self, result: EpisodeResult) -> None:
+        """Write the result: the last path update, ``/episode`` and the ``outcome`` record."""
+        if self._closed:
+            return
+        t = max(self._t, float(result.final_time))
+        if self._last_tcp is not None and (self._steps - 1) % self._path_every:
+            x, y, z = self._last_tcp
+            self._path_points.append(Point3(x=x, y=y, z=z))
+        self._publish_path(t)
+        row = result.as_row()
+        status = "failed" if row.get("failure") else "finished"
+        self._json["/episode"].base.log(M.dumps({"t": t, "status": status, **row}), round(t * 1e9))
+        self._write_metadata("outcome", {"status": status, "steps": self._steps, **row})
+        self._outcome_written = True
