@@ -8,13 +8,12 @@ from __future__ import annotations
 from amex.errors import ConfigError
 from amex.methods.amex import AMEX, AMEXConfig
 from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.cr import CR, CRConfig
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.track import Track, TrackConfig
 
-METHODS: dict[str, type[Method]] = {
-    cls.name: cls for cls in (AMEX, DMP, DMPPhaseStop, Track)
-}
+METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}
 
 
 def get_method(name: str) -> type[Method]:
@@ -28,6 +27,8 @@ def get_method(name: str) -> type[Method]:
 __all__ = [
     "AMEX",
     "AMEXConfig",
+    "CR",
+    "CRConfig",
     "DMP",
     "METHODS",
     "DMPConfig",

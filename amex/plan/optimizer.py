@@ -23,18 +23,15 @@ couple the last two knots (offset < 2n) and collisions add 7x7 blocks on the dia
 bandwidth is exactly ``2n = 14`` (not the ``3n - 1 = 20`` of dense blocks, which makes LAPACK's
 banded Cholesky ~3x slower) and each step is one ``solveh_banded`` call, O(T n^3). The collision
 term needs kinematics at every knot: it runs batched over all knots in numpy
-(:class:`BatchKinematics`; the Panda is a serial chain of revolute joints and its collision
-shapes are capsules, so capsule-sphere distances are analytic): ~1.5 us per knot, where a loop of
-Pinocchio and coal calls costs 3 us per knot without contacts and 30-90 us with.
-``tests/test_optimizer.py`` checks it against Pinocchio and coal (``amex.control.collision``).
+(:mod:`amex.plan.batch_kinematics`, re-exported here).
 """
 
 from __future__ import annotations
 
+import ctypes
 import math
-import weakref
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cache, lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -43,16 +40,34 @@ from scipy.linalg import LinAlgError, solveh_banded
 
 from amex.control.state import skew
 from amex.errors import ConfigError, SolverError
+from amex.plan.batch_kinematics import (
+    BatchKinematics,
+    BatchPoses,
+    CapsuleDistances,
+    batch_kinematics,
+)
 from amex.robot import RobotModel
+
+__all__ = [
+    "BatchKinematics",
+    "BatchPoses",
+    "CapsuleDistances",
+    "NormalEquations",
+    "TrajectoryCosts",
+    "TrajectoryProblem",
+    "TrajectorySolution",
+    "batch_kinematics",
+    "build_normal_equations",
+    "shift_warm_start",
+    "solve_trajectory",
+    "trajectory_residuals",
+]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
 _INITIAL_DAMPING = 1.0  # Levenberg lambda of the first iteration (see solve_trajectory)
 _GUARD = 0.25  # pairs within (1 + _GUARD) margins may add curvature (see solve_trajectory)
-_AXES = {
-    "JointModelRX": (1.0, 0.0, 0.0),
-    "JointModelRY": (0.0, 1.0, 0.0),
-    "JointModelRZ": (0.0, 0.0, 1.0),
-}
+_M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
+_TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
 
 
 @dataclass(frozen=True)
@@ -174,185 +189,22 @@ class NormalEquations(NamedTuple):
     cost: float
 
 
-class BatchPoses(NamedTuple):
-    """Joint frames of one configuration per knot, in the world frame.
+@cache
+def _retain_freed_memory() -> bool:
+    """Keep glibc from returning freed heap memory to the OS (``mallopt(M_TRIM_THRESHOLD)``).
 
-    Coordinates come first and knots last (long contiguous rows for numpy). Each joint frame is
-    turned about its origin so that its rotation axis is its z-axis (no turn for the Panda's
-    RZ joints, whose frames are Pinocchio's ``oMi``).
-
-    Attributes:
-        rotation: joint frame orientations by columns, ``rotation[j, b, :, t] = R_j[:, b]`` at
-            knot t, shape (njoints, 3, 3, T); j = 0 is the universe.
-        position: joint origins, shape (njoints, 3, T) [m].
-        axis: joint rotation axes ``R_j[:, 2]``, shape (njoints, 3, T).
+    An evaluation at 400 knots allocates ~1 MB of arrays and frees them again. With glibc's
+    default trim threshold the heap top is handed back to the OS after every evaluation and the
+    next one page-faults it in again: ~270 faults per evaluation, measured here to triple its
+    cost (3.4 ms instead of 1.2 ms with an obstacle). Keeping up to 64 MB of freed heap removes
+    the faults; it is a process-wide setting with no effect on results. A no-op (False) where
+    mallopt is missing.
     """
-
-    rotation: np.ndarray
-    position: np.ndarray
-    axis: np.ndarray
-
-
-class CapsuleDistances(NamedTuple):
-    """Signed distances between every arm capsule and every obstacle sphere at every knot.
-
-    Attributes:
-        distance: signed surface distance, shape (C, k, T) [m] (negative when penetrating).
-        offset: closest point on the capsule's axis segment minus the obstacle centre, shape
-            (C, k, 3, T) [m]. Its direction is the unit normal n from obstacle to arm; the
-            witness point on the arm's surface is ``centre + offset - radius * n``.
-    """
-
-    distance: np.ndarray
-    offset: np.ndarray
-
-
-class BatchKinematics:
-    """Forward kinematics and capsule-sphere distances of a revolute serial arm, batched over knots.
-
-    Args:
-        robot: the arm; every joint must be a 1-DoF revolute joint with ``idx_v == joint - 1``.
-
-    Raises:
-        ConfigError: for other joint types.
-    """
-
-    def __init__(self, robot: RobotModel) -> None:
-        model = robot.model
-        self.njoints = int(model.njoints)
-        self.parents = [int(p) for p in model.parents]
-        turn = [np.eye(3)]  # per joint: rotation taking the frame's z-axis to the joint axis
-        self.local = np.zeros((self.njoints, 4, 3))  # rows: (turned) A^T, then b^T
-        support = np.zeros((self.njoints, model.nv), dtype=bool)
-        for j in range(1, self.njoints):
-            joint = model.joints[j]
-            name = joint.shortname()
-            if name in _AXES:
-                axis = np.array(_AXES[name])
-            elif name == "JointModelRevoluteUnaligned":
-                axis = np.array(joint.axis, dtype=float)
-            else:
-                raise ConfigError.invalid("joint type", name, [*_AXES, "RevoluteUnaligned"])
-            if joint.idx_v != j - 1 or joint.nv != 1:
-                raise ConfigError.invalid("joint index", joint.idx_v, f"{j - 1} (serial chain)")
-            turn.append(pin.Quaternion.FromTwoVectors(np.array([0.0, 0.0, 1.0]), axis).matrix())
-            M, parent_turn = model.jointPlacements[j], turn[self.parents[j]]
-            self.local[j, :3] = (parent_turn.T @ M.rotation @ turn[j]).T
-            self.local[j, 3] = parent_turn.T @ M.translation
-            support[j] = support[self.parents[j]]
-            support[j, j - 1] = True
-        caps = robot.capsules
-        self.cap_joint = np.array([c.joint_id for c in caps], dtype=int)
-        self.cap_radius = np.array([c.radius for c in caps])
-        self.cap_support = support[self.cap_joint]  # (C, nv)
-        # Per joint: its capsules and their segment start and start-to-end vector (turned frame).
-        self.cap_groups = []
-        for j in sorted(set(self.cap_joint.tolist())):
-            idx = np.flatnonzero(self.cap_joint == j)
-            ends = []
-            for c in idx:
-                M, h = caps[c].placement, caps[c].half_length
-                ends.append(turn[j].T @ M.act(np.array([0.0, 0.0, -h])))
-                ends.append(turn[j].T @ (2.0 * h * M.rotation[:, 2]))
-            self.cap_groups.append((j, idx, np.array(ends)))  # (2 C_j, 3)
-        self.cap_inv_len2 = np.array(
-            [1.0 / (4 * c.half_length**2) if c.half_length > 0 else 0.0 for c in caps]
-        )
-
-    def forward(self, q: np.ndarray) -> BatchPoses:
-        """Joint frames at each row of ``q``, shape (T, nv) [rad].
-
-        Per joint: ``R_j = R_parent A_j Rz(q_j)`` and ``p_j = p_parent + R_parent b_j`` with the
-        (turned) joint placement ``(A_j, b_j)``, evaluated for all knots at once.
-        """
-        T = q.shape[0]
-        axes = np.empty((self.njoints, 3, 3, T))  # axes[j, b] = column b of R_j
-        pos = np.empty((self.njoints, 3, T))
-        axes[0] = np.eye(3)[:, :, None]
-        pos[0] = 0.0
-        sin, cos = np.sin(q.T), np.cos(q.T)
-        for j in range(1, self.njoints):
-            p = self.parents[j]
-            B = (self.local[j] @ axes[p].reshape(3, 3 * T)).reshape(4, 3, T)
-            R = axes[j]
-            np.multiply(B[0], cos[j - 1], out=R[0])
-            R[0] += B[1] * sin[j - 1]
-            np.multiply(B[1], cos[j - 1], out=R[1])
-            R[1] -= B[0] * sin[j - 1]
-            R[2] = B[2]
-            np.add(pos[p], B[3], out=pos[j])
-        return BatchPoses(axes, pos, axes[:, 2])
-
-    def capsule_distances(
-        self, poses: BatchPoses, centers: np.ndarray, radii: np.ndarray
-    ) -> CapsuleDistances:
-        """Distances of every capsule to every sphere (``centers`` (k, 3) [m], ``radii`` (k,))."""
-        T, C, k = poses.position.shape[2], len(self.cap_joint), len(radii)
-        start, seg = np.empty((C, 3, T)), np.empty((C, 3, T))  # capsule axis segments, world
-        for j, idx, ends in self.cap_groups:
-            world = (ends @ poses.rotation[j].reshape(3, 3 * T)).reshape(-1, 3, T)
-            start[idx] = world[0::2] + poses.position[j]
-            seg[idx] = world[1::2]
-        distance, offset = np.empty((C, k, T)), np.empty((C, k, 3, T))
-        for o in range(k):
-            to_start = start - centers[o][:, None]
-            u = np.einsum("cat,cat->ct", to_start, seg)
-            u *= -self.cap_inv_len2[:, None]
-            np.clip(u, 0.0, 1.0, out=u)  # closest point: start + u seg
-            off = offset[:, o]
-            np.multiply(u[:, None], seg, out=off)
-            off += to_start
-            norm = np.sqrt(np.einsum("cat,cat->ct", off, off))
-            np.subtract(norm, self.cap_radius[:, None] + radii[o], out=distance[:, o])
-        return CapsuleDistances(distance, offset)
-
-    def distance_gradients(
-        self,
-        poses: BatchPoses,
-        dist: CapsuleDistances,
-        centers: np.ndarray,
-        index: tuple[np.ndarray, ...],
-    ) -> np.ndarray:
-        """Gradients dd/dq of the pairs ``index = (capsule, obstacle, knot)``, shape (P, nv).
-
-        ``dd/dq_i = n . (z_i x (x - p_i)) = z_i . (x x n) + n . (p_i x z_i)`` for the joints i
-        supporting the capsule, with n the unit normal, x the closest axis point and z_i, p_i
-        joint i's world axis and origin: ``n^T J_point`` with Pinocchio's LOCAL_WORLD_ALIGNED
-        joint Jacobian, written with the axis lines' Plucker coordinates (z_i, p_i x z_i).
-        """
-        c, o, t = index
-        used = np.zeros(poses.axis.shape[2], dtype=bool)
-        used[t] = True
-        knots, which = np.flatnonzero(used), np.cumsum(used)[t] - 1  # knots[which] == t
-        z, p = poses.axis[1:, :, knots], poses.position[1:, :, knots]  # (nv, 3, U)
-        lines = np.empty((len(knots), 6, z.shape[0]))  # per knot: rows z, p x z; column = joint
-        lines[:, :3] = z.transpose(2, 1, 0)
-        for a, (b, d) in enumerate(((1, 2), (2, 0), (0, 1))):
-            lines[:, 3 + a] = (p[:, b] * z[:, d] - p[:, d] * z[:, b]).T
-        offset = dist.offset[c, o, :, t]  # (P, 3)
-        n = offset / np.maximum(np.sqrt(np.einsum("pa,pa->p", offset, offset)), 1e-12)[:, None]
-        x = centers[o] + offset
-        wn = np.empty((len(c), 6))  # rows (x x n, n)
-        wn[:, 0] = x[:, 1] * n[:, 2] - x[:, 2] * n[:, 1]
-        wn[:, 1] = x[:, 2] * n[:, 0] - x[:, 0] * n[:, 2]
-        wn[:, 2] = x[:, 0] * n[:, 1] - x[:, 1] * n[:, 0]
-        wn[:, 3:] = n
-        return np.einsum("pa,pai->pi", wn, lines[which]) * self.cap_support[c]
-
-
-_KINEMATICS: dict[int, tuple[weakref.ref, BatchKinematics]] = {}
-
-
-def batch_kinematics(robot: RobotModel) -> BatchKinematics:
-    """The :class:`BatchKinematics` of ``robot``, built once per robot object and reused."""
-    entry = _KINEMATICS.get(id(robot))
-    if entry is not None and entry[0]() is robot:
-        return entry[1]
-    kin = BatchKinematics(robot)
-    if len(_KINEMATICS) >= 8:
-        _KINEMATICS.clear()
-    _KINEMATICS[id(robot)] = (weakref.ref(robot), kin)
-    return kin
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (AttributeError, OSError, TypeError):
+        return False
+    return bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
 
 
 @lru_cache(maxsize=8)
@@ -360,15 +212,17 @@ def _acceleration_band(n: int, T: int, dt: float, weight: float) -> np.ndarray:
     """``2 J_acc^T J_acc`` in lower band storage (2n subdiagonals), shape (2n + 1, nT); read-only.
 
     J_acc is ``sqrt(weight dt) / dt^2`` times the second-difference operator D on the free knots,
-    so the matrix is ``kron(D^T D, I_n)`` scaled; D^T D is pentadiagonal with the entries below.
+    so the matrix is ``kron(D^T D, I_n)`` scaled; D^T D is pentadiagonal: diagonal 6 (5 and 1 at
+    the last two knots), first off-diagonal -4 (-2 at the last), second off-diagonal 1.
     """
-    k = np.arange(T)
-    inside1, inside2 = (k + 1 <= T - 1).astype(float), (k + 2 <= T - 1).astype(float)
     scale = 2.0 * weight / dt**3
     band = np.zeros((2 * n + 1, n * T))
-    band[0] = scale * np.repeat(1.0 + 4.0 * inside1 + inside2, n)
-    band[n, : n * max(T - 1, 0)] = scale * np.repeat(-2.0 * inside1[:-1] - 2.0 * inside2[:-1], n)
-    band[2 * n, : n * max(T - 2, 0)] = scale * np.repeat(inside2[:-2], n)
+    band[0] = 6.0 * scale
+    band[0, n * max(T - 2, 0) : n * max(T - 1, 0)] = 5.0 * scale
+    band[0, n * (T - 1) :] = scale
+    band[n, : n * max(T - 1, 0)] = -4.0 * scale
+    band[n, n * max(T - 2, 0) : n * max(T - 1, 0)] = -2.0 * scale
+    band[2 * n, : n * max(T - 2, 0)] = scale
     band.flags.writeable = False
     return band
 
@@ -447,67 +301,125 @@ class _Guard(NamedTuple):
         return np.add.reduceat(self.outer * mask[:, None], self.first, axis=0).ravel()
 
 
+class _Point(NamedTuple):
+    """The residuals at the free knots ``x`` and what their derivatives reuse.
+
+    Attributes:
+        x: free knots, shape (T, n) [rad].
+        residuals: acceleration (T, n), final (m,), collision (C, k, T) (zeros when inactive).
+        cost: f(x).
+        final_jacobian: Jacobian of the final residuals, columns (q_{T-1}, q_T) or q_T alone.
+        poses: batched joint frames (None without collision term).
+        dist: capsule-obstacle distances (None without collision term).
+        near: pairs within ``1 + _GUARD`` margins, (capsule, obstacle, knot) sorted by knot.
+    """
+
+    x: np.ndarray
+    residuals: list[np.ndarray]
+    cost: float
+    final_jacobian: np.ndarray
+    poses: BatchPoses | None
+    dist: CapsuleDistances | None
+    near: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+
+
 class _Evaluation(NamedTuple):
     residuals: list[np.ndarray]  # acceleration (T, n), final (m,), collision (C, k, T)
     equations: NormalEquations
     guard: _Guard | None
 
 
-def _evaluate(
+def _residuals(
     robot: RobotModel, data: pin.Data, problem: TrajectoryProblem, x: np.ndarray
-) -> _Evaluation:
-    """Residuals, normal equations and guard curvature at the free knots ``x`` (T, n) [rad].
+) -> _Point:
+    """Residuals and cost at the free knots ``x`` (T, n) [rad], without the normal equations.
+
+    A trial step needs only its cost (and its collision residuals), so the derivatives are left
+    to :func:`_linearize`, which is skipped for rejected and final steps.
+    """
+    T, n = x.shape
+    c, dt = problem.costs, problem.dt
+    s_acc = math.sqrt(c.acceleration * dt) / dt**2
+    r_acc = np.empty((T, n))
+    np.subtract(x[1:], x[:-1], out=r_acc[1:])  # first differences, then second ones
+    r_acc[0] = x[0] - problem.q_start
+    r_acc[1:] -= r_acc[:-1].copy()
+    r_acc[0] -= dt * problem.v_start
+    r_acc *= s_acc
+    q_prev = x[-2] if T > 1 else problem.q_start
+    r_fin, J_fin = _final_terms(robot.model, data, robot.tcp_frame_id, problem, q_prev, x[-1])
+    if T == 1:  # q_{T-1} is the fixed start
+        J_fin = J_fin[:, n:]
+    flat_acc = r_acc.ravel()
+    cost = float(flat_acc @ flat_acc + r_fin @ r_fin)
+
+    r_col = np.zeros((len(robot.capsules), len(problem.obstacle_radii), T))
+    poses = dist = near = None
+    if r_col.size and c.collision > 0.0:
+        kin = batch_kinematics(robot)
+        poses = kin.forward(x)
+        dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
+        depth = 1.0 - dist.distance / c.collision_margin
+        knot, cap, obs = np.nonzero(depth.transpose(2, 0, 1) > -_GUARD)  # sorted by knot
+        if knot.size:
+            near = (cap, obs, knot)
+            r_near = math.sqrt(c.collision) * np.maximum(depth[near], 0.0)
+            r_col[near] = r_near
+            cost += float(r_near @ r_near)
+    return _Point(x, [r_acc, r_fin, r_col], cost, J_fin, poses, dist, near)
+
+
+def _linearize(robot: RobotModel, problem: TrajectoryProblem, point: _Point) -> _Evaluation:
+    """Normal equations and guard curvature at ``point`` (see :func:`_residuals`).
 
     The guard holds ``2 J^T J`` of each collision pair within ``(1 + _GUARD)`` margins;
     :func:`solve_trajectory` may add those of inactive pairs to the matrix (never to the cost).
     """
-    T, n = x.shape
+    T, n = point.x.shape
     c, dt = problem.costs, problem.dt
-    Q = np.empty((T + 2, n))
-    Q[0], Q[1], Q[2:] = problem.q_start - dt * problem.v_start, problem.q_start, x
+    r_acc, r_fin, r_col = point.residuals
     s_acc = math.sqrt(c.acceleration * dt) / dt**2
-    r_acc = s_acc * (Q[2:] - 2.0 * Q[1:-1] + Q[:-2])
-    padded = np.zeros((T + 2, n))
-    padded[:T] = r_acc
-    grad = 2.0 * s_acc * (padded[:T] - 2.0 * padded[1 : T + 1] + padded[2:])
+    grad = np.empty((T, n))  # D^T r_acc: r_t - 2 r_{t+1} + r_{t+2}, zero past the end
+    grad[:] = r_acc
+    grad[:-1] -= 2.0 * r_acc[1:]
+    grad[:-2] += r_acc[2:]
+    grad *= 2.0 * s_acc
     hessian = np.array(_acceleration_band(n, T, float(dt), float(c.acceleration)))
 
-    r_fin, J_fin = _final_terms(robot.model, data, robot.tcp_frame_id, problem, Q[-2], x[-1])
-    if T == 1:  # q_{T-1} is the fixed start
-        J_fin = J_fin[:, n:]
+    J_fin = point.final_jacobian
     m = J_fin.shape[1]
     grad.reshape(-1)[-m:] += 2.0 * (J_fin.T @ r_fin)
     _add_block(hessian, 2.0 * (J_fin.T @ J_fin), n * T - m)
-    cost = float(r_acc.ravel() @ r_acc.ravel() + r_fin @ r_fin)
 
-    r_col = np.zeros((len(robot.capsules), len(problem.obstacle_radii), T))
     guard = None
-    if r_col.size and c.collision > 0.0:
+    if point.near is not None and point.poses is not None and point.dist is not None:
         kin = batch_kinematics(robot)
-        poses = kin.forward(x)
+        cap, obs, knot = near = point.near
         margin = c.collision_margin
-        dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
-        depth = 1.0 - dist.distance / margin
-        knot, cap, obs = np.nonzero(depth.transpose(2, 0, 1) > -_GUARD)  # sorted by knot
-        if knot.size:
-            near = (cap, obs, knot)
-            s_col = math.sqrt(c.collision)
-            r_near = s_col * np.maximum(depth[near], 0.0)
-            r_col[near] = r_near
-            J_col = (-s_col / margin) * kin.distance_gradients(poses, dist, problem.obstacles, near)
-            first = np.concatenate(([0], np.flatnonzero(knot[1:] != knot[:-1]) + 1))
-            rows = knot[first]  # the knots with near pairs, each once
-            grad[rows] += np.add.reduceat(2.0 * r_near[:, None] * J_col, first, axis=0)
-            i, j = _lower_triangle(n)
-            outer = 2.0 * J_col[:, i] * J_col[:, j]  # (P, n (n + 1) / 2)
-            flat = ((i - j) * (n * T) + rows[:, None] * n + j).ravel()
-            active = (r_near > 0.0)[:, None]
-            hessian.ravel()[flat] += np.add.reduceat(outer * active, first, axis=0).ravel()
-            guard = _Guard(near, outer, first, flat)
-            cost += float(r_near @ r_near)
+        s_col = math.sqrt(c.collision)
+        r_near = r_col[near]
+        J_col = (-s_col / margin) * kin.distance_gradients(
+            point.poses, point.dist, problem.obstacles, near
+        )
+        first = np.concatenate(([0], np.flatnonzero(knot[1:] != knot[:-1]) + 1))
+        rows = knot[first]  # the knots with near pairs, each once
+        grad[rows] += np.add.reduceat(2.0 * r_near[:, None] * J_col, first, axis=0)
+        i, j = _lower_triangle(n)
+        outer = 2.0 * J_col[:, i] * J_col[:, j]  # (P, n (n + 1) / 2)
+        flat = ((i - j) * (n * T) + rows[:, None] * n + j).ravel()
+        active = (r_near > 0.0)[:, None]
+        hessian.ravel()[flat] += np.add.reduceat(outer * active, first, axis=0).ravel()
+        guard = _Guard(near, outer, first, flat)
     return _Evaluation(
-        [r_acc, r_fin, r_col], NormalEquations(hessian, grad.reshape(-1), cost), guard
+        point.residuals, NormalEquations(hessian, grad.reshape(-1), point.cost), guard
     )
+
+
+def _evaluate(
+    robot: RobotModel, data: pin.Data, problem: TrajectoryProblem, x: np.ndarray
+) -> _Evaluation:
+    """Residuals, normal equations and guard curvature at the free knots ``x`` (T, n) [rad]."""
+    return _linearize(robot, problem, _residuals(robot, data, problem, x))
 
 
 def _free_knots(robot: RobotModel, problem: TrajectoryProblem, q: np.ndarray) -> np.ndarray:
@@ -563,13 +475,17 @@ def solve_trajectory(
     """Minimize the trajectory cost by Levenberg-damped Gauss-Newton.
 
     Each iteration is one banded Cholesky solve of ``(H + lambda I) dx = -g`` and one cost
-    evaluation at ``x + dx``, so an iteration has a fixed price, as replanning needs. A step that
+    evaluation at ``x + dx``, so an iteration has a fixed price, as replanning needs (the normal
+    equations at ``x + dx`` are built only when another iteration uses them). A step that
     does not increase the cost is taken and lambda shrinks 10x (down to ``damping``). A step that
     does is retried: if it brought collision pairs (within 1.25 margins, inactive at ``x``) into
     the margin, their ``2 J^T J`` is added to the matrix, the curvature Gauss-Newton cannot see
-    while a pair is inactive (solutions hug the margin, so this is the usual cause); otherwise
-    lambda grows 10x. lambda starts at ``max(damping, 1)``, which spares the first rejections
-    when an obstacle appears on a warm start. The solve stops when an accepted step lowers the
+    while a pair is inactive (solutions hug the margin, so this is the usual cause), and it stays
+    in the matrix for the rest of the solve whenever such a pair is inactive (otherwise the next
+    step pushes the same pairs in again: measured on warm-started replanning, it more than
+    halves the steps that need 4 or more iterations); otherwise lambda grows 10x. lambda starts
+    at ``max(damping, 1)``, which spares the first rejections when an obstacle appears on a warm
+    start. The solve stops when an accepted step lowers the
     cost by less than ``tolerance`` relative, when a step is below ``tolerance`` [rad] in every
     joint, or after ``max_iterations`` iterations.
 
@@ -595,20 +511,27 @@ def solve_trajectory(
             (max_iterations, tolerance, damping),
             "max_iterations >= 0, tolerance >= 0, damping > 0",
         )
+    _retain_freed_memory()
     data = robot.model.createData()
-    x = _free_knots(robot, problem, _initial_guess(problem) if q_init is None else q_init).copy()
-    current = _evaluate(robot, data, problem, x)
-    if not math.isfinite(current.equations.cost):
-        raise SolverError(
-            f"non-finite trajectory cost {current.equations.cost} at the initial guess", problem
-        )
+    x = _free_knots(robot, problem, _initial_guess(problem) if q_init is None else q_init)
+    point = _residuals(robot, data, problem, x)
+    if not math.isfinite(point.cost):
+        raise SolverError(f"non-finite trajectory cost {point.cost} at the initial guess", problem)
     lam = max(damping, _INITIAL_DAMPING)
-    converged, iterations, guarded = False, 0, None
+    converged, iterations = False, 0
+    woken = np.zeros(point.residuals[2].shape, dtype=bool)  # pairs a rejected step pushed in
+    current: _Evaluation | None = None  # the normal equations at point, made when needed
     while iterations < max_iterations and not converged:
         iterations += 1
+        if current is None:
+            current = _linearize(robot, problem, point)
         band = np.array(current.equations.hessian)
-        if guarded is not None and current.guard is not None:
-            band.ravel()[current.guard.flat] += current.guard.curvature(guarded)
+        guard = current.guard
+        r_col = current.residuals[2]
+        if guard is not None:
+            guarded = woken[guard.pairs] & (r_col[guard.pairs] == 0.0)
+            if guarded.any():
+                band.ravel()[guard.flat] += guard.curvature(guarded)
         band[0] += lam
         try:
             step = solveh_banded(
@@ -622,31 +545,29 @@ def solve_trajectory(
         except (LinAlgError, ValueError) as e:
             raise SolverError(f"Gauss-Newton Cholesky failed: {e}", problem) from e
         step = step.reshape(x.shape)
-        trial = _evaluate(robot, data, problem, x + step)
-        cost, new_cost = current.equations.cost, trial.equations.cost
+        trial = _residuals(robot, data, problem, point.x + step)
+        cost, new_cost = point.cost, trial.cost
         if not math.isfinite(new_cost):
             raise SolverError(f"non-finite trajectory cost {new_cost}", problem)
         small_step = float(np.max(np.abs(step))) < tolerance
         if new_cost <= cost:
             converged = small_step or cost - new_cost <= tolerance * cost
-            x += step
-            current = trial
+            point, current = trial, None
             lam = max(damping, lam / 10.0)
-            guarded = None
         else:
             converged = small_step
-            woken = None
-            if current.guard is not None:  # pairs that the rejected step made active
-                woken = trial.residuals[2][current.guard.pairs] > 0.0
-                woken &= current.residuals[2][current.guard.pairs] == 0.0
-                if guarded is not None:
-                    woken &= ~guarded
-            if woken is not None and woken.any():
-                guarded = woken if guarded is None else guarded | woken
-            else:
+            pushed_in = False
+            if guard is not None:  # inactive pairs that the rejected step made active
+                newly = trial.residuals[2][guard.pairs] > 0.0
+                newly &= r_col[guard.pairs] == 0.0
+                newly &= ~woken[guard.pairs]
+                pushed_in = bool(newly.any())
+                woken[tuple(index[newly] for index in guard.pairs)] = True
+            if not pushed_in:
                 lam *= 10.0
-    cost = current.equations.cost
-    return TrajectorySolution(np.vstack([problem.q_start, x]), cost, iterations, converged)
+    return TrajectorySolution(
+        np.vstack([problem.q_start, point.x]), point.cost, iterations, converged
+    )
 
 
 def shift_warm_start(solution_q: np.ndarray, steps_new: int) -> np.ndarray:
