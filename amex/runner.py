@@ -14,6 +14,7 @@ import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -70,7 +71,7 @@ def run_one(
         context.plan.y[0, :3],
         context.plan.duration,
     )
-    world = {
+    world: dict[str, Any] = {
         "perception": config.perception,
         "prediction": config.prediction,
         "mismatch": config.mismatch,
