@@ -1,0 +1,547 @@
+"""The paper's PR2 experiment (Section IV-B) in simulation: ``experiment=pr2_like`` on Tasks 1-4.
+
+``conf/experiment/pr2_like.yaml``: a 20 Hz adaptation loop, the goal seen by a camera (5 mm
+noise, 50 ms latency) and an arm that "does not accelerate as desired" (links 20 % heavier than
+the controller's model, 0.3 N m Coulomb friction, 0.5 N m s/rad viscous damping). Three parts:
+
+1. ``table``: every method on Tasks 1-4, each run composed exactly as ``amex-run
+   experiment=pr2_like task=T method=M`` and run in-process into
+   ``runs/pr2_like/task<T>_<M>_seed0/`` (the directory names of an ``amex-run -m`` sweep with
+   ``hydra.sweep.dir=runs/pr2_like``, so either fills and resumes the other), then the Fig. 5
+   table of :mod:`analysis.table`; plus AMEX with a stiffer velocity loop (``method.pos.kd`` and
+   ``method.dir.kd`` 400, see below) into ``runs/pr2_like_variants/amex_kd400/``, reported apart
+   and paired against AMEX with the original gains and against DMP.
+2. ``stall``: why AMEX stalls under ``pr2_like`` with the original inner gains (Kp 1, Kd 100): on
+   Task 2, AMEX with other gains and with one mismatch term at a time, into
+   ``runs/pr2_like_stall/<variant>/``.
+3. ``fig6``: the paper's Fig. 6 analogue from one Task-2 AMEX episode: the reference TCP path,
+   the executed paths (original gains, and Kd 400), the perceived goals as dots, and below the
+   phase and the commanded versus actual TCP speed over time.
+
+Outputs: ``analysis/out/pr2_like.md`` and ``analysis/out/fig6_pr2_like.png``.
+
+Usage: ``python -m analysis.pr2 [--episodes 30] [--stall-episodes 30] [--runs DIR] [--out DIR]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from analysis.robustness import _markdown, paired_stats
+from analysis.table import aggregate, combined, load_runs, paired, paper_table
+
+HERE = Path(__file__).resolve().parent
+EXPERIMENT = "pr2_like"
+PR2_METHODS = ("amex", "dmp", "cr")
+TASKS = (1, 2, 3, 4)
+SEED = 0
+KD400 = ("method.pos.kd=400", "method.dir.kd=400")
+#: AMEX variants run on every task besides the configured AMEX: name -> overrides.
+AMEX_VARIANTS = {"amex_kd400": KD400}
+NO_MISMATCH = ("mismatch.mass_scale=1", "mismatch.friction=0", "mismatch.damping=0")
+#: The stall analysis (Task 2, AMEX): label -> overrides on top of ``experiment=pr2_like``.
+STALL = {
+    "pr2_like, original gains (Kp 1, Kd 100)": (),
+    "Kp 100": ("method.pos.kp=100", "method.dir.kp=100"),
+    "Kp 400": ("method.pos.kp=400", "method.dir.kp=400"),
+    "Kp 1000": ("method.pos.kp=1000", "method.dir.kp=1000"),
+    "Kd 200": ("method.pos.kd=200", "method.dir.kd=200"),
+    "Kd 400": KD400,
+    "Kp 400, Kd 200": (
+        "method.pos.kp=400",
+        "method.dir.kp=400",
+        "method.pos.kd=200",
+        "method.dir.kd=200",
+    ),
+    "Kp 400, Kd 40 (DMP's gains)": (
+        "method.pos.kp=400",
+        "method.dir.kp=400",
+        "method.pos.kd=40",
+        "method.dir.kd=40",
+    ),
+    "only mass x 1.2": ("mismatch.friction=0", "mismatch.damping=0"),
+    "only friction 0.3 N m": ("mismatch.mass_scale=1", "mismatch.damping=0"),
+    "only damping 0.5 N m s": ("mismatch.mass_scale=1", "mismatch.friction=0"),
+    "no mismatch (20 Hz, camera only)": NO_MISMATCH,
+    "exact goal perception (mismatch only)": ("perception.noise_std=0", "perception.latency=0"),
+    "100 Hz (mismatch, camera)": ("outer_hz=100",),
+}
+FIG6_ENV = 0  # the Task-2 environment drawn
+
+
+@dataclass(frozen=True)
+class PR2Study:
+    """What to run.
+
+    Attributes:
+        episodes: environments per (task, method) run.
+        stall_episodes: environments per stall variant (0: skip the stall analysis).
+        tasks: tasks of the table.
+        methods: methods of the table.
+        stall: stall variants (label -> overrides).
+        overrides: extra overrides for every run (e.g. ``max_time=0.5`` in tests).
+    """
+
+    episodes: int = 30
+    stall_episodes: int = 30
+    tasks: tuple[int, ...] = TASKS
+    methods: tuple[str, ...] = PR2_METHODS
+    stall: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(STALL))
+    overrides: tuple[str, ...] = ()
+
+
+def pr2_config(task: int, method: str, episodes: int, overrides: Sequence[str] = ()):
+    """The validated RunConfig of ``amex-run experiment=pr2_like task=.. method=.. ...``."""
+    from amex.cli import load_config
+
+    return load_config(
+        [
+            f"experiment={EXPERIMENT}",
+            f"task={task}",
+            f"method={method}",
+            f"episodes={episodes}",
+            *overrides,
+        ]
+    )
+
+
+def _run(config, run_dir: Path, label: str) -> None:
+    from amex.runner import run
+
+    summary = run(config, run_dir)
+    print(
+        f"{label}: success {summary['success']['mean']:.2f}, final time "
+        f"{summary['final_time']['mean']:.2f} s ({run_dir})",
+        file=sys.stderr,
+        flush=True,
+    )
+
+
+def _episodes(run_dir: Path, n: int) -> pd.DataFrame:
+    df = load_runs(run_dir)
+    return df[df.env < n].copy()
+
+
+def run_table(study: PR2Study, runs: Path) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]]:
+    """Run the methods and the AMEX variants on every task; return their episodes."""
+    main = runs / EXPERIMENT
+    for task in study.tasks:
+        for method in study.methods:
+            config = pr2_config(task, method, study.episodes, study.overrides)
+            _run(config, main / f"task{task}_{method}_seed{SEED}", f"task {task} {method}")
+    variants: dict[str, pd.DataFrame] = {}
+    if "amex" in study.methods:
+        for name, extra in AMEX_VARIANTS.items():
+            frames = []
+            for task in study.tasks:
+                config = pr2_config(task, "amex", study.episodes, (*study.overrides, *extra))
+                run_dir = runs / f"{EXPERIMENT}_variants" / name / f"task{task}_amex_seed{SEED}"
+                _run(config, run_dir, f"task {task} {name}")
+                frames.append(_episodes(run_dir, study.episodes))
+            variants[name] = pd.concat(frames, ignore_index=True)
+    df = load_runs(main)
+    df = df[df.task.isin(study.tasks) & df.method.isin(study.methods) & (df.env < study.episodes)]
+    return df.reset_index(drop=True), variants
+
+
+def run_stall(study: PR2Study, runs: Path) -> pd.DataFrame:
+    """The stall analysis: AMEX on Task 2 under each variant; one row per variant."""
+    records = []
+    base = None
+    for i, (label, extra) in enumerate(study.stall.items()):
+        config = pr2_config(2, "amex", study.stall_episodes, (*study.overrides, *extra))
+        run_dir = runs / f"{EXPERIMENT}_stall" / f"v{i:02d}"
+        _run(config, run_dir, f"stall {label}")
+        g = _episodes(run_dir, study.stall_episodes)
+        base = g if base is None else base
+        ft = paired_stats(g, base, ("final_time",)).iloc[0]
+        records.append(
+            {
+                "variant": label,
+                "overrides": " ".join(extra) or "(none)",
+                "n": len(g),
+                "success": g.success.mean(),
+                "success_005": g.success_005.mean(),
+                "timeouts": (g.final_time >= config.max_time - 1e-9).mean(),
+                "final_time_mean": g.final_time.mean(),
+                "final_distance_mean_cm": 100 * g.final_distance.mean(),
+                "final_distance_max_cm": 100 * g.final_distance.max(),
+                "sum_sq_acc_mean": g.sum_sq_acc.mean(),
+                "final_time_diff_vs_original": ft.mean_diff,
+                "diff_ci": f"[{ft.ci_low:.2f}, {ft.ci_high:.2f}]",
+                "run_dir": str(run_dir),
+            }
+        )
+    return pd.DataFrame.from_records(records)
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """The unmodelled TCP acceleration at the reference's final pose, and what it costs AMEX.
+
+    Attributes:
+        gravity: ``(mass_scale - 1) |J M^-1 g|``: the task-space acceleration the inner PD must
+            supply to hold the heavier arm still [m/s^2].
+        friction: ``|J M^-1 f|`` with every joint's Coulomb friction ``f`` opposing at once
+            (an upper bound) [m/s^2].
+        offsets: the steady velocity error ``gravity / Kd`` for each Kd in :data:`OFFSET_KD`
+            [m/s]: AMEX's y* = y + v dt never accumulates a position error, so only the velocity
+            term of the PD can hold the load.
+    """
+
+    gravity: float
+    friction: float
+    offsets: dict[float, float]
+
+
+OFFSET_KD = (100.0, 200.0, 400.0)
+
+
+def disturbance(overrides: Sequence[str] = ()) -> Disturbance:
+    """Compute :class:`Disturbance` for ``pr2_like`` (rigid-body terms from Pinocchio)."""
+    import pinocchio as pin
+
+    from amex.runner import prepare
+
+    config = pr2_config(2, "amex", 1, overrides)
+    context = prepare(config)
+    robot = context.robot
+    model = robot.model
+    data = model.createData()
+    q = context.plan.q[-1]
+    g = pin.computeGeneralizedGravity(model, data, q)
+    M = pin.crba(model, data, q)
+    M = np.triu(M) + np.triu(M, 1).T
+    J = pin.computeFrameJacobian(model, data, q, robot.tcp_frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+    gravity = float(np.linalg.norm(J @ np.linalg.solve(M, g))) * (config.mismatch.mass_scale - 1)
+    f = np.full(model.nv, config.mismatch.friction)
+    friction = float(np.linalg.norm(J @ np.linalg.solve(M, f)))
+    return Disturbance(gravity, friction, {kd: gravity / kd for kd in OFFSET_KD})
+
+
+class PathRecorder:
+    """An :class:`amex.episode.Recorder` keeping what Fig. 6 draws, at the outer rate."""
+
+    def __init__(self) -> None:
+        self.rows: list[tuple[float, ...]] = []
+        self.result = None
+
+    def record(self, step) -> None:
+        """Keep time, TCP position, perceived goal, phase, commanded and actual TCP speed."""
+        yd = step.command.yd
+        speed_cmd = float(np.linalg.norm(yd[:3])) if yd is not None else np.nan
+        self.rows.append(
+            (
+                step.t,
+                *step.state.y[:3],
+                *step.observation.goal[:3],
+                float(step.internals.get("s", np.nan)),
+                speed_cmd,
+                float(np.linalg.norm(step.state.yd[:3])),
+            )
+        )
+
+    def finish(self, result) -> None:
+        """Keep the episode's result."""
+        self.result = result
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The recorded series: t (n,), tcp (n, 3), seen (n, 3), s, speed_cmd, speed (n,)."""
+        a = np.asarray(self.rows, dtype=float)
+        return {
+            "t": a[:, 0],
+            "tcp": a[:, 1:4],
+            "seen": a[:, 4:7],
+            "s": a[:, 7],
+            "speed_cmd": a[:, 8],
+            "speed": a[:, 9],
+        }
+
+
+@dataclass(frozen=True)
+class Trace:
+    """One recorded episode for Fig. 6."""
+
+    label: str
+    series: dict[str, np.ndarray]
+    goal: np.ndarray  # true goal at the recorded times, (n, 3) [m]
+    reference: np.ndarray  # reference TCP path, (N + 1, 3) [m]
+    result: object
+
+
+def record_episode(
+    env: int = FIG6_ENV, overrides: Sequence[str] = (), label: str = "AMEX"
+) -> Trace:
+    """Run Task-2 environment ``env`` with AMEX under ``pr2_like`` and record it."""
+    from amex.episode import run_episode
+    from amex.methods import get_method
+    from amex.runner import prepare
+    from amex.scenario import make_scenario
+
+    config = pr2_config(2, "amex", 1, overrides)
+    context = prepare(config)
+    method = get_method("amex").from_plan(
+        context.plan, config.method, 1.0 / config.outer_hz, context.robot
+    )
+    scenario = make_scenario(
+        config.scenario, 2, config.seed, env, context.plan.y[0, :3], context.plan.duration
+    )
+    recorder = PathRecorder()
+    run_episode(
+        context.robot,
+        method,
+        scenario,
+        config.gains(),
+        config.loop,
+        recorder,
+        perception=config.perception,
+        prediction=config.prediction,
+        mismatch=config.mismatch,
+    )
+    series = recorder.arrays()
+    goal = np.array([scenario.goal_at(t) for t in series["t"]])
+    return Trace(label, series, goal, context.plan.y[:, :3].copy(), recorder.result)
+
+
+def plot_fig6(traces: Sequence[Trace], path: Path) -> Path:
+    """Top and side views of the paths (top row), phase and speeds over time (bottom row)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    colors = ("tab:blue", "tab:purple", "tab:orange")
+    fig, axes = plt.subplots(2, 2, figsize=(11, 9))
+    first = traces[0]
+    for ax, (i, j), name in zip(axes[0], ((0, 1), (0, 2)), ("top view", "side view"), strict=True):
+        ref = first.reference
+        ax.plot(ref[:, i], ref[:, j], color="tab:red", lw=2, label=r"reference $\tau_{ref}$")
+        ax.plot(*ref[0, [i, j]], "ko", ms=6, label="start")
+        for k, tr in enumerate(traces):
+            c = colors[k % len(colors)]
+            seen, tcp = tr.series["seen"], tr.series["tcp"]
+            if k == 0:
+                ax.scatter(
+                    seen[:, i],
+                    seen[:, j],
+                    s=9,
+                    color=c,
+                    alpha=0.35,
+                    lw=0,
+                    label="perceived goal (20 Hz)",
+                )
+            r = tr.result
+            outcome = "success" if r.success else "fail"
+            outcome += f", {100 * r.final_distance:.1f} cm at {r.final_time:.1f} s"
+            ls = "-" if k == 0 else "--"
+            label = f"executed, {tr.label}\n({outcome})"
+            ax.plot(tcp[:, i], tcp[:, j], color=c, lw=1.8, ls=ls, label=label)
+        g = first.goal
+        ax.plot(g[:, i], g[:, j], color="gold", lw=3, zorder=0, label="true goal path")
+        ax.plot(*g[-1, [i, j]], marker="*", color="goldenrod", ms=14, ls="", label="final goal")
+        circle = plt.Circle(tuple(g[-1, [i, j]]), 0.03, fill=False, ls=":", color="goldenrod")
+        ax.add_patch(circle)
+        ax.set_xlabel("xyz"[i] + " [m]")
+        ax.set_ylabel("xyz"[j] + " [m]")
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title(f"{name} (dotted circle: 3 cm success radius)")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=7, loc="upper left")
+    ax_s, ax_v = axes[1]
+    ax_d = ax_s.twinx()
+    for k, tr in enumerate(traces):
+        c, ls = colors[k % len(colors)], "-" if k == 0 else "--"
+        sr = tr.series
+        ax_s.plot(sr["t"], sr["s"], color=c, ls=ls, lw=2, label=f"phase s, {tr.label}")
+        dist = 100 * np.linalg.norm(sr["tcp"] - tr.goal, axis=1)
+        ax_d.plot(sr["t"], dist, color=c, ls=ls, lw=0.9, alpha=0.55)
+        ax_s.plot([], [], color=c, ls=ls, lw=0.9, alpha=0.55, label=f"distance, {tr.label}")
+        ax_v.plot(
+            sr["t"],
+            100 * sr["speed_cmd"],
+            color=c,
+            ls=ls,
+            lw=0.9,
+            alpha=0.6,
+            label=f"commanded |y*'|, {tr.label}",
+        )
+        ax_v.plot(
+            sr["t"], 100 * sr["speed"], color=c, ls=ls, lw=1.8, label=f"actual |y'|, {tr.label}"
+        )
+    ax_d.axhline(3.0, color="goldenrod", lw=0.8, ls=":")
+    ax_d.set_ylabel("TCP distance to the true goal [cm] (thin; dotted: 3 cm)")
+    ax_d.set_ylim(0, None)
+    ax_s.set_ylim(0, 1.02)
+    ax_s.set_xlabel("t [s]")
+    ax_s.set_ylabel("phase s [-] (thick)")
+    ax_s.set_title("AMEX phase and distance to the goal")
+    ax_v.set_xlabel("t [s]")
+    ax_v.set_ylabel("TCP speed [cm/s]")
+    ax_v.set_title("Eq. 9 commanded speed versus actual speed")
+    for ax in (ax_s, ax_v):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    fig.suptitle(
+        "Fig. 6 analogue: pr2_like (20 Hz, camera 5 mm / 50 ms, mass x 1.2, friction, damping), "
+        f"Task 2, environment {FIG6_ENV}, AMEX"
+    )
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+    return path
+
+
+def _fmt_table(table: pd.DataFrame, episodes: pd.DataFrame, max_time: float) -> pd.DataFrame:
+    """The Fig. 5 columns that matter here, plus the mean final distance and the timeouts."""
+    by = episodes.groupby(["task", "method"])
+    extra = pd.DataFrame(
+        {
+            "final dist. [cm]": by.final_distance.mean().map(lambda v: f"{100 * v:.2f}"),
+            "timeouts": by.final_time.apply(lambda t: f"{(t >= max_time - 1e-9).mean():.2f}"),
+        }
+    ).reset_index()
+    added = ("final dist. [cm]", "timeouts")
+    table = table.drop(columns=[c for c in added if c in table.columns])
+    table = table.merge(extra, on=["task", "method"], how="left")
+    keep = [
+        "task",
+        "method",
+        "n",
+        "success",
+        "success (paper)",
+        "success 0.05 m",
+        "collided",
+        "final time [s]",
+        "final time (paper)",
+        "final dist. [cm]",
+        "timeouts",
+        "sum sq. acc.",
+        "compute [s]",
+    ]
+    return table[keep]
+
+
+def _pairs_table(rows: list[dict]) -> str:
+    df = pd.DataFrame.from_records(rows)
+    df["mean_diff"] = df.mean_diff.map(lambda v: f"{v:.3g}")
+    df["95% CI"] = [f"[{a:.3g}, {b:.3g}]" for a, b in zip(df.ci_low, df.ci_high, strict=True)]
+    df["wilcoxon_p"] = df.wilcoxon_p.map(lambda v: f"{v:.2g}")
+    return _markdown(df[["task", "a", "b", "metric", "pairs", "mean_diff", "95% CI", "wilcoxon_p"]])
+
+
+def render(
+    study: PR2Study, df: pd.DataFrame, variants: dict[str, pd.DataFrame], stall: pd.DataFrame
+) -> str:
+    """The report as Markdown."""
+    parts = [
+        "# The PR2 conditions in simulation (`experiment=pr2_like`)\n",
+        "The paper's Section IV-B ran AMEX on a PR2: a 20 Hz adaptation loop, a goal tracked by "
+        'a camera, a robot that "does not accelerate as desired". `conf/experiment/pr2_like.yaml`'
+        " reproduces these: outer loop 20 Hz; goal noise 5 mm per coordinate and 50 ms latency; "
+        "the simulated links 20 % heavier than the controller's model, 0.3 N m Coulomb friction "
+        "and 0.5 N m s/rad viscous damping per joint. Every method at its configured (original) "
+        f"gains; {study.episodes} environments per task, identical for every method. The paper "
+        "gives no numbers for the PR2: its columns are its simulated Fig. 5 (100 Hz, exact "
+        "model), for scale only. Regenerate: `python -m analysis.pr2`.\n",
+    ]
+    ours = aggregate(df)
+    max_time = pr2_config(1, "amex", 1, study.overrides).max_time
+    parts.append(_markdown(_fmt_table(combined(ours, paper_table()), df, max_time)))
+    pairs = paired(df)
+    if len(pairs):
+        parts.append("\n## Paired comparisons (a - b on identical environments)\n")
+        parts.append(_pairs_table(pairs.to_dict("records")))
+    for name, vdf in variants.items():
+        label = f"amex ({name.removeprefix('amex_')})"
+        parts.append(f"\n## AMEX with `{' '.join(AMEX_VARIANTS[name])}` (deviation)\n")
+        parts.append(
+            "Not the paper's gains: the same AMEX with a 4x stiffer velocity loop (see the stall "
+            "analysis below). Paired against AMEX with the original gains and against DMP.\n"
+        )
+        vt = _fmt_table(combined(aggregate(vdf), paper_table()), vdf, max_time)
+        vt["method"] = label
+        parts.append(_markdown(vt))
+        rows = []
+        for task in sorted(vdf.task.unique()):
+            for other in ("amex", "dmp"):
+                b = df[(df.task == task) & (df.method == other)]
+                if b.empty:
+                    continue
+                stats = paired_stats(vdf[vdf.task == task], b, ("success", "final_time"))
+                rows += stats.assign(task=task, a=label, b=other).to_dict("records")
+        if rows:
+            parts.append("")
+            parts.append(_pairs_table(rows))
+    if len(stall):
+        parts.append("\n## Why AMEX stalls: Task 2, AMEX, one change at a time\n")
+        d = disturbance(study.overrides)
+        offsets = ", ".join(f"{100 * v:.1f} cm/s at Kd {kd:g}" for kd, v in d.offsets.items())
+        parts.append(
+            f"Unmodelled load at the reference's final pose: the 20 % heavier links need "
+            f"{d.gravity:.2f} m/s² of extra TCP acceleration to be held (mostly downward), "
+            f"Coulomb friction up to {d.friction:.2f} m/s² more. AMEX commands y* = y + v dt "
+            "from the measured y, so its PD never builds a position error against a constant "
+            "load (Kp sees at most one commanded step): the load is carried by the velocity "
+            f"term alone, a steady velocity deficit of load / Kd: {offsets}. Once Eq. 9's "
+            "commanded speed on the decelerating reference falls to this deficit, the arm stops "
+            "(sagging below the goal), Eq. 8's delta_y drops to ~0.1 and the phase freezes "
+            "(at s = 0.77 in the Fig. 6 episode, lower row). Raising Kp adds only Kp dt of "
+            "velocity gain; raising Kd divides the deficit.\n"
+        )
+        parts.append(
+            "`timeouts`: fraction of episodes that never came within the 6 mm stop radius "
+            "before max_time (10 s). Final-time difference: paired against the first row, "
+            "bootstrap 95 % interval.\n"
+        )
+        shown = stall.drop(columns=["run_dir"]).copy()
+        for col in ("success", "success_005", "timeouts"):
+            shown[col] = shown[col].map(lambda v: f"{v:.2f}")
+        for col in ("final_time_mean", "final_distance_mean_cm", "final_distance_max_cm"):
+            shown[col] = shown[col].map(lambda v: f"{v:.2f}")
+        shown["sum_sq_acc_mean"] = shown.sum_sq_acc_mean.map(lambda v: f"{v:.3g}")
+        shown["final_time_diff_vs_original"] = shown.final_time_diff_vs_original.map(
+            lambda v: f"{v:+.2f}"
+        )
+        parts.append(_markdown(shown))
+    return "\n".join(parts) + "\n"
+
+
+def write_outputs(study: PR2Study, runs: Path, out_dir: Path) -> list[Path]:
+    """Run everything (resuming) and write ``pr2_like.md`` and ``fig6_pr2_like.png``."""
+    df, variants = run_table(study, runs)
+    stall = run_stall(study, runs) if study.stall_episodes > 0 else pd.DataFrame()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    md = out_dir / "pr2_like.md"
+    tmp = md.with_suffix(".md.tmp")
+    tmp.write_text(render(study, df, variants, stall))
+    os.replace(tmp, md)
+    traces = [record_episode(overrides=study.overrides, label="Kp 1, Kd 100 (original)")]
+    traces.append(record_episode(overrides=(*study.overrides, *KD400), label="Kd 400"))
+    fig = plot_fig6(traces, out_dir / "fig6_pr2_like.png")
+    return [md, fig]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line (see the module docstring)."""
+    parser = argparse.ArgumentParser(prog="python -m analysis.pr2", description=__doc__)
+    parser.add_argument("--episodes", type=int, default=30, help="environments per task/method")
+    parser.add_argument("--stall-episodes", type=int, default=30, help="0: skip the stall part")
+    parser.add_argument("--runs", type=Path, default=Path("runs"))
+    parser.add_argument("--out", type=Path, default=HERE / "out")
+    args = parser.parse_args(argv)
+    study = PR2Study(episodes=args.episodes, stall_episodes=args.stall_episodes)
+    for path in write_outputs(study, args.runs, args.out):
+        print(path)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
