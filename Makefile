@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow lint bench table figures paper clean
+.PHONY: install run test test-slow lint bench table figures studies paper clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -44,6 +44,11 @@ table: $(STAMP)
 ## The paper's figures (Fig. 2 from AMEX itself, Fig. 4 and Fig. 6 analogues) into analysis/out/.
 figures: $(STAMP)
 	$(BIN)/python -m analysis.figures
+
+## Beyond the paper: robustness (goal speed, noise, prediction) and pr2_like studies (~1.5 h).
+studies: $(STAMP)
+	$(BIN)/python -m analysis.robustness --episodes 50
+	$(BIN)/python -m analysis.pr2 --episodes 30
 
 ## The whole comparison: 4 tasks x 3 methods x 150 environments, then the table.
 ## Re-running resumes: recorded episodes are kept and skipped.

@@ -2,7 +2,9 @@
 
 * Fig. 2 (the paper's 2-D illustration, drawn from :class:`amex.methods.AMEX` itself),
 * Fig. 4 analogue (one Task-3 environment: reference plan and the methods' paths),
-* Fig. 6 analogue (reference versus executed path with the goal positions as dots).
+* Fig. 6 analogue (reference versus executed path with the goal positions as dots),
+* the robustness study's plots and table, redrawn from ``runs/robustness`` when its runs exist
+  (``make studies`` runs the studies: ~1.5 h on one core).
 """
 
 from __future__ import annotations
@@ -26,6 +28,13 @@ def main(argv: list[str] | None = None) -> int:
     from analysis.fig6 import plot_fig6
 
     written = [*plot_fig2(args.out), *plot_fig4(args.out), *plot_fig6(args.out)]
+    runs = Path("runs/robustness")
+    if runs.is_dir():
+        from analysis.robustness import Study, write_outputs
+
+        cells = [p for p in runs.iterdir() if (p / "episodes.csv").exists()]
+        episodes = max(1, min((p / "episodes.csv").read_text().count("\n") - 1 for p in cells))
+        written += write_outputs(Study(episodes=episodes), runs, args.out)
     for path in written:
         print(path)
     return 0
