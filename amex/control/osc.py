@@ -110,7 +110,6 @@ class OperationalSpaceController:
         self._W = np.zeros((6, 6))  # task-space weight; the axis block depends on z
         self._W[:3, :3] = gains.pos.weight * np.eye(3)
         self._zero6_list = [0.0] * 6
-        self._zero6 = np.zeros(6)
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).

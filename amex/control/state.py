@@ -32,23 +32,6 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx])
 
 
-def axis_drift(alpha: np.ndarray, omega: np.ndarray, z: np.ndarray) -> list[float]:
-    """Second derivative of a body-fixed unit axis at zero joint acceleration.
-
-    ``z_ddot = alpha x z + omega x (omega x z)`` with angular drift ``alpha = J_w_dot v`` and
-    angular velocity ``omega``; shape (3,) as a list of floats.
-    """
-    axx, ayy, azz = alpha.tolist()
-    wx, wy, wz = omega.tolist()
-    zx, zy, zz = z.tolist()
-    dx, dy, dz = wy * zz - wz * zy, wz * zx - wx * zz, wx * zy - wy * zx  # omega x z
-    return [
-        ayy * zz - azz * zy + wy * dz - wz * dy,
-        azz * zx - axx * zz + wz * dx - wx * dz,
-        axx * zy - ayy * zx + wx * dy - wy * dx,
-    ]
-
-
 class RobotState:
     """Joint state plus everything the controller and the methods read from it.
 
