@@ -25,6 +25,8 @@ from typing import Any
 
 import numpy as np
 
+from amex.log.plot3d import set_equal_axes_3d
+
 TASK = 3
 ENV = 0  # the Task-3 environment drawn (a goal the obstacle sits right in front of)
 SEED = 0
@@ -222,17 +224,7 @@ def _paths_3d(ax: Any, episodes: dict[str, Episode], first: Episode) -> None:
     ax.plot([], [], color="black", lw=8, alpha=0.5, label="obstacle")
     ax.scatter(*first.tcp[0], color="k", marker="s", s=30, depthshade=False, label="start")
     points = np.concatenate([first.reference, goal, *(e.tcp for e in episodes.values())])
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    mid, half = (lo + hi) / 2, (hi - lo).max() / 2 * 1.05
-    ax.set(
-        xlim=(mid[0] - half, mid[0] + half),
-        ylim=(mid[1] - half, mid[1] + half),
-        zlim=(mid[2] - half, mid[2] + half),
-        xlabel="x [m]",
-        ylabel="y [m]",
-        zlabel="z [m]",
-    )
-    ax.set_box_aspect((1, 1, 1))
+    set_equal_axes_3d(ax, points, pad=1.05)
     ax.view_init(elev=25, azim=-125)
     ax.set_title("(b) task space, 3-D (legend in (c))")
 

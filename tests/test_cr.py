@@ -40,15 +40,7 @@ def context():
 def reference_weights(config: RunConfig, **changes) -> CRConfig:
     """CR with exactly the reference plan's cost weights (no collision term)."""
     p = config.plan
-    weights = dict(
-        acceleration=p.acceleration,
-        final_position=p.final_position,
-        final_velocity=p.final_velocity,
-        final_axis=p.final_axis,
-        final_axis_velocity=p.final_axis_velocity,
-        collision=0.0,
-        knot_dt=p.dt,
-    )
+    weights = dict(**p.cost_weights(), collision=0.0, knot_dt=p.dt)
     return CRConfig(**{**weights, **changes})
 
 

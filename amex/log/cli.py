@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from amex.errors import AmexError
+from amex.log.plot3d import set_equal_axes_3d
 from amex.log.reader import LogData, LogError, read_log, recover, topics_with_numbers
 
 PROG = "amex-log"
@@ -251,17 +252,7 @@ def draw_paths(ax: Any, data: LogData) -> None:
     if len(radii):
         ax.plot([], [], color="C3", lw=6, alpha=0.4, label="obstacle")
     points = np.concatenate([p for p in (ref, tcp, goal) if len(p)])
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    center, half = (lo + hi) / 2, max(float((hi - lo).max()) / 2, 0.05) * 1.1
-    ax.set(
-        xlim=(center[0] - half, center[0] + half),
-        ylim=(center[1] - half, center[1] + half),
-        zlim=(center[2] - half, center[2] + half),
-        xlabel="x [m]",
-        ylabel="y [m]",
-        zlabel="z [m]",
-    )
-    ax.set_box_aspect((1, 1, 1))
+    set_equal_axes_3d(ax, points, pad=1.1, min_half=0.05)
     ax.legend(loc="center left", bbox_to_anchor=(1.2, 0.5), fontsize="small")
     ax.set_title("TCP and goal in task space")
 

@@ -50,14 +50,7 @@ def solve_reference(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> ReferencePlan:
     """Solve the reference problem (no obstacles, start at rest in ``robot.q0``) from scratch."""
-    costs = TrajectoryCosts(
-        acceleration=config.acceleration,
-        final_position=config.final_position,
-        final_velocity=config.final_velocity,
-        final_axis=config.final_axis,
-        final_axis_velocity=config.final_axis_velocity,
-        collision=0.0,
-    )
+    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0)
     problem = TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),

@@ -63,6 +63,11 @@ class PlanConfig:
     final_axis: float = 1e4
     final_axis_velocity: float = 1e3
 
+    def cost_weights(self) -> dict[str, float]:
+        """The plan's cost weights, named as :class:`~amex.plan.optimizer.TrajectoryCosts` does."""
+        names = ("acceleration", "final_position", "final_velocity", "final_axis")
+        return {name: getattr(self, name) for name in (*names, "final_axis_velocity")}
+
     @property
     def steps(self) -> int:
         """Number of knots after the start, ``duration / dt``."""
