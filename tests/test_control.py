@@ -4,9 +4,11 @@ import pinocchio as pin
 import pytest
 
 from amex.control.collision import CollisionModel
-from amex.control.osc import Command, OperationalSpaceController, OSCGains
+from amex.control.kernels import clip_inplace
+from amex.control.osc import PD, Command, OperationalSpaceController, OSCGains, solve_objective
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, PositionMap
+from amex.errors import SolverError
 
 EPS = 1e-6
 
@@ -67,24 +69,51 @@ def test_collision_jacobian_matches_finite_differences(robot, seed):
     assert np.abs(terms.J - J_fd).max() < 1e-5
 
 
-def test_fused_objective_equals_task_by_task_objective(robot):
-    rng = np.random.default_rng(5)
+@pytest.mark.parametrize("seed", [0, 1, 2])
+@pytest.mark.parametrize("kind", ["task", "joint", "both", "none"])
+@pytest.mark.parametrize("near", [True, False], ids=["in_margin", "clear"])
+def test_compiled_objective_equals_task_by_task_objective(robot, seed, kind, near):
+    rng = np.random.default_rng(seed)
     collision = CollisionModel(robot, [0.02])
     q = robot.q0 + rng.normal(scale=0.2, size=7)
     tcp = robot.tcp_pose(q).translation
-    collision.set_obstacles((tcp + np.array([0.0, 0.0, -0.05]))[None])
-    osc = OperationalSpaceController(robot, OSCGains(), collision)
+    collision.set_obstacles((tcp + np.array([0.0, 0.0, -0.05 if near else -0.5]))[None])
+    gains = OSCGains(damping=PD(3.0, 10.0, 0.01))  # a posture stiffness too
+    osc = OperationalSpaceController(robot, gains, collision)
     state = _state(robot, q, rng.normal(size=7))
+    task = kind in ("task", "both")
+    joint = kind in ("joint", "both")
     command = Command(
-        y=state.y + rng.normal(scale=0.01, size=6),
-        yd=rng.normal(size=6),
-        q=q + 0.1,
-        qd=rng.normal(size=7),
+        y=state.y + rng.normal(scale=0.01, size=6) if task else None,
+        yd=rng.normal(size=6) if task else None,
+        q=q + 0.1 if joint else None,
+        qd=rng.normal(size=7) if joint else None,
     )
+    assert (osc.col_map.evaluate(state).phi[0] > 0) == near
     fast = osc.build_objective(state, command)
     slow = osc.build_objective_reference(state, command)
-    assert np.allclose(fast.A, slow.A, atol=1e-10)
-    assert np.allclose(fast.b, slow.b, atol=1e-10)
+    assert np.allclose(fast.A, slow.A, rtol=1e-12, atol=1e-10)
+    assert np.allclose(fast.b, slow.b, rtol=1e-12, atol=1e-10)
+    qdd = osc.accelerations(state, command)  # compiled Cholesky against LAPACK
+    assert np.allclose(qdd, solve_objective(slow), rtol=1e-9, atol=1e-9)
+
+
+def test_a_nan_state_is_a_solver_error_carrying_the_system(robot):
+    osc = OperationalSpaceController(robot, OSCGains())
+    state = _state(robot, np.full(7, np.nan))  # NaN Jacobian: A is not SPD
+    with pytest.raises(SolverError, match="not positive definite") as info:
+        osc.torque(state, Command(y=np.zeros(6), yd=np.zeros(6)))
+    assert info.value.problem.A.shape == (7, 7)
+
+
+def test_compiled_clip_matches_numpy_and_keeps_nan():
+    rng = np.random.default_rng(0)
+    lo, hi = -np.arange(1.0, 8.0), np.arange(1.0, 8.0)
+    x = rng.normal(scale=6.0, size=7)
+    x[3] = np.nan
+    expected = np.minimum(np.maximum(x, lo), hi)
+    clip_inplace(x, lo, hi)
+    assert np.array_equal(x, expected, equal_nan=True)
 
 
 def test_at_rest_on_target_the_controller_only_compensates_gravity(robot):
@@ -97,8 +126,6 @@ def test_at_rest_on_target_the_controller_only_compensates_gravity(robot):
 
 
 def test_controller_drives_tcp_to_a_nearby_target_in_mujoco(robot):
-    from amex.control.osc import PD
-
     gains = OSCGains(pos=PD(400.0, 40.0, 1.0), dir=PD(400.0, 40.0, 0.5))
     osc = OperationalSpaceController(robot, gains)
     model = robot.build_mujoco(0)
@@ -117,8 +144,6 @@ def test_controller_drives_tcp_to_a_nearby_target_in_mujoco(robot):
 
 
 def test_torques_are_clipped_to_the_limits(robot):
-    from amex.control.osc import PD
-
     osc = OperationalSpaceController(robot, OSCGains(pos=PD(1e6, 0.0, 1.0)))
     state = _state(robot, robot.q0.copy())
     target = state.y.copy()

@@ -9,7 +9,10 @@ target of Eq. 6, ``y_ddot* = Kp (y* - phi(q)) + Kd (y_dot* - phi_dot(q))``; the 
 and the torque is ``tau = M q_ddot + h`` (inverse dynamics with Pinocchio's model), clipped to the
 joint torque limits. Unlike the original code, the drift ``J_dot v`` is included.
 
-The problem is built by :func:`build_objective` (pure) and solved by :func:`solve_objective`.
+At 1 kHz the system is assembled and solved by one compiled call (:mod:`amex.control.kernels`,
+Numba): :meth:`OperationalSpaceController.build_objective` returns it (pure; no solve),
+:meth:`~OperationalSpaceController.build_objective_reference` assembles the same system task map by
+task map in numpy (the test oracle), and :func:`solve_objective` solves a given system by LAPACK.
 """
 
 from __future__ import annotations
@@ -21,6 +24,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv
 
+from amex.control import kernels
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
@@ -103,80 +107,58 @@ class OperationalSpaceController:
         self._lo = -robot.torque_limit
         self._hi = robot.torque_limit
         n = robot.nv
-        self._eye = np.eye(n)
-        self._diag = (gains.reg + gains.damping.weight) * np.eye(n)
-        self._damp_kd = -gains.damping.weight * gains.damping.kd
-        self._damp_kp = gains.damping.weight * gains.damping.kp
-        self._W = np.zeros((6, 6))  # task-space weight; the axis block depends on z
-        self._W[:3, :3] = gains.pos.weight * np.eye(3)
-        self._zero6_list = [0.0] * 6
+        self._zeros6 = np.zeros(6)
+        self._zero_row = np.zeros((1, n))
+        self._A, self._b = np.empty((n, n)), np.empty(n)  # kernel work space
+        self._prm = kernels.pack_gains(
+            gains.pos, gains.dir, gains.joint, gains.col, gains.damping, gains.reg
+        )
+
+    def _kernel_args(self, state: RobotState, command: Command) -> tuple:
+        """The arguments of the compiled kernels after ``(A, b[, x])`` (module :mod:`.kernels`)."""
+        y, q = command.y, command.q
+        task_on = y is not None
+        joint_on = q is not None
+        ty = y if task_on else self._zeros6
+        tyd = command.yd if task_on and command.yd is not None else self._zeros6
+        tq = q if joint_on else self._zeros
+        tqd = command.qd if joint_on and command.qd is not None else self._zeros
+        col_phi, Jc = 0.0, self._zero_row
+        if self.col_map is not None:
+            terms = self.col_map.evaluate(state)
+            col_phi, Jc = float(terms.phi[0]), terms.J
+        return (
+            state.J,
+            state.v,
+            state.q,
+            state.H,
+            state.acc_drift,
+            task_on,
+            ty,
+            tyd,
+            joint_on,
+            tq,
+            tqd,
+            self.q_rest,
+            col_phi,
+            Jc,
+            self._prm,
+        )
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
 
-        This runs at 1 kHz, where every numpy call costs about a microsecond, so the position and
-        axis tasks are folded into ``A = J^T W J`` and ``b = J^T rho`` with the TCP Jacobian J
-        (6 x 7) and 3-vector arithmetic done on Python floats. The damping task has Jacobian I,
-        so it adds ``c I`` to A and ``c (kp (q_rest - q) - kd v)`` to b directly.
+        This runs at 1 kHz, where every numpy call costs about a microsecond, so the system is
+        assembled by one compiled call (:func:`amex.control.kernels.normal_equations`). The
+        position and axis tasks are folded into ``A = J^T W J`` and ``b = J^T rho`` with the TCP
+        Jacobian J (6 x 7), ``W = diag(c_pos I, c_axis (I - z z^T))`` (the axis task's rows are
+        ``-[z]x J_w``) and rho the weighted Eq. 6 targets minus the drift; the damping task has
+        Jacobian I, so it adds ``c I`` to A and ``c (kp (q_rest - q) - kd v)`` to b directly.
         :meth:`build_objective_reference` assembles the same system map by map, for tests.
         """
-        g = self.gains
-        if command.y is not None:
-            J = state.J
-            v = state.v
-            twist = (J @ v).tolist()
-            px, py, pz, zx, zy, zz = state.y_list
-            ax, ay, az, bx, by, bz = state.acc_drift.tolist()  # linear drift, angular drift
-            wx, wy, wz = twist[3:]
-            # z_dot = w x z and its drift z_ddot|_(q_ddot=0) = alpha x z + w x z_dot (AxisMap)
-            dx, dy, dz = wy * zz - wz * zy, wz * zx - wx * zz, wx * zy - wy * zx
-            ex = by * zz - bz * zy + wy * dz - wz * dy
-            ey = bz * zx - bx * zz + wz * dx - wx * dz
-            ez = bx * zy - by * zx + wx * dy - wy * dx
-            ty = command.y.tolist()
-            tyd = command.yd.tolist() if command.yd is not None else self._zero6_list
-            kp, kd, kpa, kda = g.pos.kp, g.pos.kd, g.dir.kp, g.dir.kd
-            wp, wa = g.pos.weight, g.dir.weight
-            # Eq. 6 minus the drift: the task accelerations the joint accelerations must produce
-            rx = wp * (kp * (ty[0] - px) + kd * (tyd[0] - twist[0]) - ax)
-            ry = wp * (kp * (ty[1] - py) + kd * (tyd[1] - twist[1]) - ay)
-            rz = wp * (kp * (ty[2] - pz) + kd * (tyd[2] - twist[2]) - az)
-            sx = kpa * (ty[3] - zx) + kda * (tyd[3] - dx) - ex
-            sy = kpa * (ty[4] - zy) + kda * (tyd[4] - dy) - ey
-            sz = kpa * (ty[5] - zz) + kda * (tyd[5] - dz) - ez
-            # axis rows T_a = -[z]x J_w: T_a^T s = J_w^T (z x s), T_a^T T_a = J_w^T (I - zz^T) J_w
-            rho = np.array(
-                [
-                    rx,
-                    ry,
-                    rz,
-                    wa * (zy * sz - zz * sy),
-                    wa * (zz * sx - zx * sz),
-                    wa * (zx * sy - zy * sx),
-                ]
-            )
-            W = self._W
-            W[3:, 3:] = [
-                [wa * (1.0 - zx * zx), -wa * zx * zy, -wa * zx * zz],
-                [-wa * zx * zy, wa * (1.0 - zy * zy), -wa * zy * zz],
-                [-wa * zx * zz, -wa * zy * zz, wa * (1.0 - zz * zz)],
-            ]
-            A = J.T @ (W @ J) + self._diag
-            b = J.T @ rho + self._damp_kd * v
-        else:
-            A = self._diag.copy()
-            b = self._damp_kd * state.v
-        if self._damp_kp:
-            b += self._damp_kp * (self.q_rest - state.q)
-        if command.q is not None:
-            qd = command.qd if command.qd is not None else self._zeros
-            c = g.joint.weight
-            A += c * self._eye
-            b += c * (g.joint.kp * (command.q - state.q) + g.joint.kd * (qd - state.v))
-        if self.col_map is not None:
-            terms = self.col_map.evaluate(state)
-            if terms.phi[0] > 0.0:
-                _accumulate(A, b, terms, g.col, self._zero1, self._zero1)
+        n = self.robot.nv
+        A, b = np.empty((n, n)), np.empty(n)
+        kernels.normal_equations(A, b, *self._kernel_args(state, command))
         return Objective(A, b)
 
     def build_objective_reference(self, state: RobotState, command: Command) -> Objective:
@@ -200,8 +182,19 @@ class OperationalSpaceController:
         return Objective(A, b)
 
     def accelerations(self, state: RobotState, command: Command) -> np.ndarray:
-        """The minimizer q_ddot* of Eq. 4, shape (7,) [rad/s^2]."""
-        return solve_objective(self.build_objective(state, command))
+        """The minimizer q_ddot* of Eq. 4, shape (7,) [rad/s^2].
+
+        Raises:
+            SolverError: if the normal equations are not positive definite (e.g. a NaN state).
+        """
+        A, b, x = self._A, self._b, np.empty(self.robot.nv)
+        info = kernels.osc_accelerations(A, b, x, *self._kernel_args(state, command))
+        if info != 0:
+            raise SolverError(
+                f"OSC normal equations not positive definite (info={info})",
+                Objective(A.copy(), b.copy()),
+            )
+        return x
 
     def torque(self, state: RobotState, command: Command) -> np.ndarray:
         """Joint torques ``tau = M q_ddot* + h``, clipped to the limits, shape (7,) [N m].
@@ -210,7 +203,8 @@ class OperationalSpaceController:
         """
         qdd = self.accelerations(state, command)
         tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
-        return np.minimum(np.maximum(tau, self._lo), self._hi)
+        kernels.clip_inplace(tau, self._lo, self._hi)
+        return tau
 
 
 def solve_objective(objective: Objective) -> np.ndarray:

@@ -38,6 +38,7 @@ class RobotState:
     Attributes:
         q: joint positions, shape (7,) [rad].
         v: joint velocities, shape (7,) [rad/s].
+        H: TCP pose in the world frame (homogeneous), shape (4, 4).
         y_list: the 6-D task state of the paper's methods as Python floats, (TCP position [m],
             TCP z-axis): the 1 kHz loop does its 3-vector arithmetic on these.
         y: the same as an array, shape (6,) (built on first use).
@@ -49,7 +50,7 @@ class RobotState:
             shape (6,) [m/s^2, rad/s^2].
     """
 
-    __slots__ = ("robot", "data", "q", "v", "y_list", "_y", "J", "acc_drift")
+    __slots__ = ("robot", "data", "q", "v", "H", "y_list", "_y", "J", "acc_drift")
 
     def __init__(self, robot: RobotModel, data: pin.Data, q: np.ndarray, v: np.ndarray) -> None:
         model = robot.model
@@ -60,7 +61,8 @@ class RobotState:
         self.v = v
         pin.forwardKinematics(model, data, q, v, robot.zero_velocity)
         pin.computeJointJacobians(model, data)
-        H = pin.updateFramePlacement(model, data, fid).homogeneous.tolist()
+        self.H = pin.updateFramePlacement(model, data, fid).homogeneous
+        H = self.H.tolist()
         self.y_list = [H[0][3], H[1][3], H[2][3], H[0][2], H[1][2], H[2][2]]
         self._y: np.ndarray | None = None
         self.J = pin.getFrameJacobian(model, data, fid, _LWA)
