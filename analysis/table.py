@@ -10,7 +10,8 @@ appears with two configurations, then writes into ``analysis/out/``:
 * ``paired.csv`` and a section of ``fig5.md``: paired comparisons on identical environments (AMEX vs
   DMP, AMEX vs CR, and any other pair present): mean difference with a bootstrap 95 % interval and
   the Wilcoxon signed-rank p-value;
-* the paper's qualitative claims, each marked holds / fails / n/a in ``fig5.md``.
+* the paper's qualitative claims, each marked holds / fails / n/a in ``fig5.md``, plus one
+  diagnostic: smoothness at equal duration (:func:`duration_invariant_smoothness`).
 
 Errors (no runs, a corrupt or truncated csv, mixed configurations) print one line naming the file
 and exit with code 2; the outputs are replaced only when everything succeeded.
@@ -37,7 +38,7 @@ HERE = Path(__file__).resolve().parent
 PAPER_CSV = HERE / "paper_fig5.csv"
 METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
 PAIRS = (("amex", "dmp"), ("amex", "cr"), ("amex", "dmp_ps"), ("dmp", "cr"))
-PAIRED_METRICS = ("success", "final_time", "sum_sq_acc")
+PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_t3")
 BOOTSTRAP = 10_000
 
 
@@ -92,7 +93,21 @@ def load_runs(root: Path) -> pd.DataFrame:
         "compute_time_mean",
     ):
         df[col] = df[col].astype(float)
+    df["sum_sq_acc_t3"] = duration_invariant_smoothness(df.sum_sq_acc, df.final_time)
     return df
+
+
+def duration_invariant_smoothness(sum_sq_acc, final_time):
+    """``sum_sq_acc * final_time**3``: the sum of squared accelerations at equal duration.
+
+    Executing a motion k times slower divides its accelerations by k^2 and multiplies the number
+    of 1 kHz samples by k, so the sum of squared accelerations falls as k^-3 while this product
+    stays the same. It separates "smoother" from "slower": a method whose adaptive phase stretches
+    the motion (AMEX) scores lower on ``sum_sq_acc`` for that reason alone. A diagnostic, not one
+    of the paper's metrics; episodes that stall until ``max_time`` inflate it, so the table reports
+    its median. Units rad^2 s^-1 (no dt factor in ``sum_sq_acc``).
+    """
+    return sum_sq_acc * final_time**3
 
 
 def _mean_2std(values: pd.Series) -> tuple[float, float]:
@@ -120,6 +135,7 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
                 "final_time_2std": ft2,
                 "sum_sq_acc_mean": acc,
                 "sum_sq_acc_2std": acc2,
+                "sum_sq_acc_t3_median": float(g.sum_sq_acc_t3.median()),
                 "compute_time_mean": ct,
                 "compute_time_2std": ct2,
                 "compute_time_median": float(g.compute_time_median.median()),
@@ -217,6 +233,17 @@ def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
         lambda t: ", ".join(f"{m} {get(t, m, 'sum_sq_acc_mean'):.3g}" for m in paper_methods),
     )
     verdict(
+        "CR is the smoothest at equal duration (median sum sq. acc. x final time^3; diagnostic)",
+        paper_methods,
+        lambda t: (
+            get(t, "cr", "sum_sq_acc_t3_median")
+            < min(get(t, "amex", "sum_sq_acc_t3_median"), get(t, "dmp", "sum_sq_acc_t3_median"))
+        ),
+        lambda t: ", ".join(
+            f"{m} {get(t, m, 'sum_sq_acc_t3_median'):.3g}" for m in paper_methods
+        ),
+    )
+    verdict(
         "AMEX is smoother than DMP",
         ("amex", "dmp"),
         lambda t: get(t, "amex", "sum_sq_acc_mean") < get(t, "dmp", "sum_sq_acc_mean"),
@@ -275,6 +302,7 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
                 "compute [s]": _pm(r.compute_time_mean, r.compute_time_2std, ".2e"),
                 "compute (paper)": _pm(r.compute_time_mean_paper, r.compute_time_2std_paper, ".2e"),
                 "compute median [s]": f"{r.compute_time_median:.2e}",
+                "sum sq. acc. x T^3 (median)": f"{r.sum_sq_acc_t3_median:.2e}",
             }
         )
     return pd.DataFrame.from_records(rows)

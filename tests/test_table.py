@@ -63,3 +63,21 @@ def test_mixed_configurations_are_refused(runs, tmp_path, capsys):
     config.method = METHODS["dmp"].config_class()
     run(config, root / "other_seed")
     assert "mixed" in _bad_input(tmp_path, capsys, root)
+
+
+def test_duration_invariant_smoothness_is_unchanged_by_slowing_a_motion_down():
+    import numpy as np
+
+    from analysis.table import duration_invariant_smoothness
+
+    def executed(duration, dt=1e-3):  # a minimum-jerk reach, sampled at 1 kHz
+        t = np.arange(0.0, duration + dt / 2, dt) / duration
+        q = np.outer(10 * t**3 - 15 * t**4 + 6 * t**5, [0.3, -0.5, 0.8])
+        qdd = np.diff(q, 2, axis=0) / dt**2
+        return float((qdd**2).sum()), duration
+
+    fast = executed(3.0)
+    slow = executed(3.6)
+    assert slow[0] < 0.6 * fast[0]  # 20 % slower: (1 / 1.2)^3 = 0.58 of the raw sum
+    a, b = (duration_invariant_smoothness(*x) for x in (fast, slow))
+    assert abs(a - b) / a < 1e-3
