@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import ctypes
 import math
-from dataclasses import dataclass, field
 from functools import cache, lru_cache
 from typing import NamedTuple
 
@@ -46,6 +45,7 @@ from amex.plan.batch_kinematics import (
     CapsuleDistances,
     batch_kinematics,
 )
+from amex.plan.problem import TrajectoryCosts, TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
 __all__ = [
@@ -68,110 +68,6 @@ _INITIAL_DAMPING = 1.0  # Levenberg lambda of the first iteration (see solve_tra
 _GUARD = 0.25  # pairs within (1 + _GUARD) margins may add curvature (see solve_trajectory)
 _M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
 _TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
-
-
-@dataclass(frozen=True)
-class TrajectoryCosts:
-    """Weights of the cost terms (module docstring); the original's values (DESIGN.md).
-
-    Attributes:
-        acceleration: weight of sum_t ||q_ddot_t||^2 dt [s^3/rad^2 per unit cost].
-        final_position: weight of the squared TCP position error at q_T [1/m^2].
-        final_velocity: weight of the squared joint speed at the end [s^2/rad^2].
-        final_axis: weight of the squared TCP z-axis error at q_T.
-        final_axis_velocity: weight of the squared TCP z-axis rate at the end [s^2].
-        collision: weight of sum over knots and pairs of max(0, 1 - d / margin)^2.
-        collision_margin: distance below which the collision term acts [m].
-    """
-
-    acceleration: float = 1.0
-    final_position: float = 1e4
-    final_velocity: float = 1e3
-    final_axis: float = 1e4
-    final_axis_velocity: float = 1e3
-    collision: float = 1.0
-    collision_margin: float = 0.02  # [m]
-
-    def __post_init__(self) -> None:
-        for name in (
-            "acceleration",
-            "final_position",
-            "final_velocity",
-            "final_axis",
-            "final_axis_velocity",
-            "collision",
-        ):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
-        if not (math.isfinite(self.collision_margin) and self.collision_margin > 0.0):
-            raise ConfigError.invalid("costs.collision_margin", self.collision_margin, "> 0 [m]")
-
-
-@dataclass(frozen=True, eq=False)
-class TrajectoryProblem:
-    """One trajectory optimization: start state, horizon, goal, obstacles and costs.
-
-    Arrays are copied to float arrays at construction; bad shapes, ranges or non-finite values
-    raise :class:`SolverError` carrying the problem.
-
-    Attributes:
-        q_start: measured joint position at the horizon start, shape (7,) [rad].
-        v_start: measured joint velocity, shape (7,) [rad/s]; defines q_-1 = q_start - dt v_start.
-        steps: T, the number of free knots q_1..q_T.
-        dt: knot spacing [s].
-        goal_pos: TCP goal position in the world frame, shape (3,) [m].
-        goal_axis: TCP goal z-axis in the world frame (unit), shape (3,).
-        obstacles: sphere centres, shape (k, 3) [m]; k may be 0.
-        obstacle_radii: sphere radii, shape (k,) [m].
-        costs: weights of the cost terms.
-    """
-
-    q_start: np.ndarray
-    v_start: np.ndarray
-    steps: int
-    dt: float
-    goal_pos: np.ndarray
-    goal_axis: np.ndarray
-    obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
-    obstacle_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
-    costs: TrajectoryCosts = field(default_factory=TrajectoryCosts)
-
-    def __post_init__(self) -> None:
-        names = ("q_start", "v_start", "goal_pos", "goal_axis", "obstacles", "obstacle_radii")
-        for name in names:
-            object.__setattr__(self, name, np.array(getattr(self, name), dtype=float))
-        if self.obstacles.size == 0:
-            object.__setattr__(self, "obstacles", np.zeros((0, 3)))
-        n, k = max(self.q_start.size, 1), self.obstacle_radii.size
-        shapes = ((n,), (n,), (3,), (3,), (k, 3), (k,))
-        for name, shape in zip(names, shapes, strict=True):
-            value = getattr(self, name)
-            if value.shape != shape:
-                raise SolverError(f"trajectory problem: {name} has shape {value.shape}", self)
-            if not np.all(np.isfinite(value)):
-                raise SolverError(f"trajectory problem: non-finite {name}={value}", self)
-        if int(self.steps) != self.steps or self.steps < 1:
-            raise SolverError(f"trajectory problem: steps={self.steps}; valid: integer >= 1", self)
-        if not (math.isfinite(self.dt) and self.dt > 0.0):
-            raise SolverError(f"trajectory problem: dt={self.dt}; valid: > 0 [s]", self)
-
-
-class TrajectorySolution(NamedTuple):
-    """Result of :func:`solve_trajectory`.
-
-    Attributes:
-        q: knots including the start as row 0, shape (T + 1, 7) [rad].
-        cost: f at ``q``.
-        iterations: iterations used (one banded solve and one cost evaluation each, whether the
-            step was taken or not).
-        converged: whether the step or the relative cost decrease fell below the tolerance.
-    """
-
-    q: np.ndarray
-    cost: float
-    iterations: int
-    converged: bool
 
 
 class NormalEquations(NamedTuple):
