@@ -57,8 +57,21 @@ def test_pinocchio_and_mujoco_agree(robot, seed):
 
 
 def test_arm_does_not_collide_with_itself_in_mujoco(robot):
-    model = robot.build_mujoco(0)
+    model = robot.build_mujoco(1)  # an obstacle (parked far away): collision detection is on
+    assert not model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    obstacle = model.body("obstacle_0").id
+    arm = [g for g in range(model.ngeom) if model.geom_bodyid[g] != obstacle]
+    for i in arm:  # MuJoCo's filter: a pair may touch iff contype/conaffinity bits meet
+        for j in arm:
+            assert not model.geom_contype[i] & model.geom_conaffinity[j]
+    (ball,) = [g for g in range(model.ngeom) if model.geom_bodyid[g] == obstacle]
+    assert all(model.geom_contype[g] & model.geom_conaffinity[ball] for g in arm)
     data = mujoco.MjData(model)
     data.qpos[:] = robot.q0
     mujoco.mj_forward(model, data)
     assert data.ncon == 0
+
+
+def test_without_obstacles_mujoco_skips_collision_detection(robot):
+    model = robot.build_mujoco(0)
+    assert model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
