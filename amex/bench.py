@@ -4,7 +4,8 @@
   Task-0 episode's steps, measured inside a real episode loop;
 * Task-0 episode: wall time of a whole episode with ``track`` (and its real-time factor);
 * reference plan: cold solve, and a disk-cache hit;
-* each registered method's own outer step (``Method.step``), median over a Task-3 episode.
+* each registered method's own outer step (``Method.step``), median, mean and p95 over the
+  steps of Task-3 episodes (``--episodes N`` environments, default 1; ``--methods`` a subset).
 
 Timings use ``time.perf_counter_ns``; nothing here asserts a time (tests never time things).
 """
@@ -100,12 +101,13 @@ def bench_plan(config: RunConfig, repeats: int = 3) -> tuple[list[float], list[f
     return cold, hits
 
 
-def bench_method_steps(name: str, task: int = 3, env: int = 0) -> list[float]:
-    """Per-step wall times [s] of ``name``'s outer step over one episode of ``task``."""
+def bench_method_steps(name: str, task: int = 3, envs: range = range(1)) -> list[float]:
+    """Per-step wall times [s] of ``name``'s outer step over the episodes ``envs`` of ``task``."""
+    from amex.episode import run_episode
+
     config = _config(name, task)
     context = prepare(config)
-    method_cls = METHODS[name]
-    method = method_cls.from_plan(context.plan, config.method, 0.01, context.robot)
+    method = METHODS[name].from_plan(context.plan, config.method, 0.01, context.robot)
     times: list[float] = []
     original = method.step
 
@@ -116,12 +118,11 @@ def bench_method_steps(name: str, task: int = 3, env: int = 0) -> list[float]:
         return out
 
     method.step = timed  # type: ignore[method-assign]
-    scenario = make_scenario(
-        config.scenario, task, config.seed, env, context.plan.y[0, :3], context.plan.duration
-    )
-    from amex.episode import run_episode
-
-    run_episode(context.robot, method, scenario, config.gains(), config.loop)
+    for env in envs:
+        scenario = make_scenario(
+            config.scenario, task, config.seed, env, context.plan.y[0, :3], context.plan.duration
+        )
+        run_episode(context.robot, method, scenario, config.gains(), config.loop)
     return times
 
 
@@ -133,28 +134,43 @@ def main(argv: list[str] | None = None) -> None:
     """Print the benchmark table."""
     parser = argparse.ArgumentParser(prog="amex-bench", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
+    parser.add_argument(
+        "--episodes", type=int, default=1, help="Task-3 environments per method's step timing"
+    )
+    parser.add_argument(
+        "--methods", nargs="*", choices=sorted(METHODS), help="methods to time (default: all)"
+    )
+    parser.add_argument("--steps-only", action="store_true", help="only the methods' outer steps")
     args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error(f"--episodes {args.episodes}: valid: an integer >= 1")
+    if not args.steps_only:
+        _print_platform(args.quick)
+    for name in args.methods or sorted(METHODS):
+        steps = bench_method_steps(name, envs=range(args.episodes))
+        p95 = float(np.percentile(steps, 95))
+        print(
+            f"method {name:<7} outer step on Task 3 ({args.episodes} env), median of "
+            f"{len(steps)}: {_us(np.median(steps))}  (mean {_us(np.mean(steps))}, p95 {_us(p95)})"
+        )
+
+
+def _print_platform(quick: bool) -> None:
+    """The inner step, the Task-0 episode and the reference plan."""
     config = _config("track")
-    inner = bench_inner_step(config, 2000 if args.quick else 6000)
+    inner = bench_inner_step(config, 2000 if quick else 6000)
     print(f"inner step (state + OSC + mj_step), median of {len(inner)}: {_us(np.median(inner))}")
-    episode = bench_episode(config, 2 if args.quick else 5)
+    episode = bench_episode(config, 2 if quick else 5)
     final_time, walls = episode[-1], episode[:-1]
     wall = statistics.median(walls)
     print(
         f"Task-0 episode ({final_time:.2f} s simulated), median wall: {wall:9.3f} s  "
         f"(real-time factor {final_time / wall:.1f})"
     )
-    cold, hits = bench_plan(config, 1 if args.quick else 3)
+    cold, hits = bench_plan(config, 1 if quick else 3)
     print(f"reference plan, cold solve, median of {len(cold)}: {statistics.median(cold):9.3f} s")
     hit = statistics.median(hits) * 1e3
     print(f"reference plan, cache hit, median of {len(hits)}: {hit:9.2f} ms")
-    for name in sorted(METHODS):
-        steps = bench_method_steps(name)
-        p95 = float(np.percentile(steps, 95))
-        print(
-            f"method {name:<7} outer step on Task 3, median of {len(steps)}: "
-            f"{_us(np.median(steps))}  (mean {_us(np.mean(steps))}, p95 {_us(p95)})"
-        )
 
 
 if __name__ == "__main__":
