@@ -3,13 +3,16 @@
 The paper's PR2 experiment tracked the goal with a camera (AR markers) and names goal prediction
 "e.g. with a Kalman filter" as future work. Here the goal a method sees is
 
-    g_meas(t) = g(t - latency) + n,   n ~ N(0, noise_std^2 I),
+    g_meas(t) = g(t - latency + preview) + n,   n ~ N(0, noise_std^2 I),
 
 drawn from a generator seeded by ``(seed, task, env)`` so every method sees the same noise in the
 same environment. With prediction on, a constant-velocity Kalman filter (per axis, state
 position and velocity, white-acceleration process noise) filters ``g_meas`` and the method gets
 its estimate extrapolated to ``t + lead_time`` (``lead_time`` >= 0 also compensates the latency:
-the filter's newest information is ``latency`` old). Success is always judged on the true goal.
+the filter's newest information is ``latency`` old). ``preview`` > 0 is an oracle for
+experiments: the method sees where the goal will be ``preview`` seconds from now (a long preview,
+e.g. 10 s, shows from the start where a moving goal will come to rest), an upper bound for what
+any prediction could give. Success is always judged on the true goal.
 """
 
 from __future__ import annotations
@@ -28,10 +31,13 @@ class PerceptionConfig:
     Attributes:
         noise_std: standard deviation of each goal coordinate measurement [m] (0: exact).
         latency: age of a measurement when the method receives it [s] (0: none).
+        preview: oracle look-ahead [s]: the method sees the goal this far in the future (0:
+            none; see the module notes).
     """
 
     noise_std: float = 0.0
     latency: float = 0.0
+    preview: float = 0.0
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` for negative values."""
@@ -39,11 +45,13 @@ class PerceptionConfig:
             raise ConfigError.invalid("perception.noise_std", self.noise_std, "a length >= 0 [m]")
         if not self.latency >= 0:
             raise ConfigError.invalid("perception.latency", self.latency, "a duration >= 0 [s]")
+        if not (self.preview >= 0 and np.isfinite(self.preview)):
+            raise ConfigError.invalid("perception.preview", self.preview, "a duration >= 0 [s]")
 
     @property
     def exact(self) -> bool:
         """True when the method sees the true goal."""
-        return self.noise_std == 0 and self.latency == 0
+        return self.noise_std == 0 and self.latency == 0 and self.preview == 0
 
 
 @dataclass
@@ -145,11 +153,11 @@ class GoalSensor:
 
     def measure(self, t: float) -> np.ndarray:
         """What the method gets at time ``t``: raw measurement, or the filter's prediction."""
-        latency = self.perception.latency
-        z = self.goal_at(max(t - latency, 0.0))
+        t_seen = t - self.perception.latency + self.perception.preview
+        z = self.goal_at(max(t_seen, 0.0))
         if self.perception.noise_std > 0:
             z = z + self.rng.normal(0.0, self.perception.noise_std, size=3)
         if self.filter is None:
             return z
-        self.filter.update(t - latency, z)
+        self.filter.update(t_seen, z)
         return self.filter.predict(t + self.prediction.lead_time)

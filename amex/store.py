@@ -4,7 +4,8 @@ Every row carries two hashes of the configuration that produced it:
 
 * ``config_hash``: everything that determines the episode (task, method and its parameters, scenes,
   plan, controller, rates, seed, code version), not ``episodes`` or ``log``. A run resumes by
-  skipping the environments already recorded under the same hash.
+  skipping the environments already recorded under the same hash. An option added later is left
+  out while it has the value that reproduces the earlier behaviour (``_ADDED_OPTIONS``).
 * ``scene_hash``: the same without task and method, so rows of different methods with equal scene
   hashes ran on identical environments (the condition for paired comparisons).
 
@@ -31,6 +32,10 @@ from amex.metrics import COLUMNS, EpisodeResult
 HASH_COLUMNS = ("config_hash", "scene_hash")
 CSV_COLUMNS = COLUMNS + HASH_COLUMNS
 _NOT_RESULTS = ("episodes", "log")
+# Options added after runs were recorded, with the value that reproduces the behaviour before
+# them: at that value they are left out of the hashes, so adding an option does not orphan
+# existing runs (they resume and tabulate as before); any other value is hashed as usual.
+_ADDED_OPTIONS: dict[tuple[str, str], object] = {("perception", "preview"): 0.0}
 
 
 class StoreError(AmexError):
@@ -38,6 +43,10 @@ class StoreError(AmexError):
 
 
 def _digest(spec: dict[str, Any]) -> str:
+    for (section, key), neutral in _ADDED_OPTIONS.items():
+        sub = spec.get(section)
+        if isinstance(sub, dict) and key in sub and sub[key] == neutral:
+            spec = {**spec, section: {k: v for k, v in sub.items() if k != key}}
     spec = {**spec, "amex_version": amex.__version__}
     return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
 

@@ -39,6 +39,21 @@ def test_latency_delays_and_prediction_compensates_it():
     assert np.linalg.norm(estimate - _moving(0.05 * 59)) < 1e-3
 
 
+def test_preview_is_an_oracle_that_sees_the_goal_ahead():
+    ahead = GoalSensor(
+        _moving, PerceptionConfig(preview=0.5), PredictionConfig(), np.random.default_rng(0)
+    )
+    assert np.array_equal(ahead.measure(1.0), _moving(1.5))
+    both = GoalSensor(
+        _moving,
+        PerceptionConfig(latency=0.2, preview=0.5),
+        PredictionConfig(),
+        np.random.default_rng(0),
+    )
+    assert np.allclose(both.measure(1.0), _moving(1.3))
+    assert not PerceptionConfig(preview=0.5).exact
+
+
 def test_noise_is_seeded_and_has_the_configured_size():
     perception = PerceptionConfig(noise_std=0.005)
     a = GoalSensor(_moving, perception, PredictionConfig(), np.random.default_rng(3))
@@ -54,6 +69,8 @@ def test_noise_is_seeded_and_has_the_configured_size():
     [
         (PerceptionConfig(noise_std=-1.0), "perception.noise_std"),
         (PerceptionConfig(latency=-0.1), "perception.latency"),
+        (PerceptionConfig(preview=-1.0), "perception.preview"),
+        (PerceptionConfig(preview=float("inf")), "perception.preview"),
         (PredictionConfig(accel_std=0.0), "prediction.accel_std"),
     ],
 )
