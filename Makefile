@@ -28,7 +28,7 @@ test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
 
 lint: $(STAMP)
-	$(BIN)/ruff check amex tests analysis
+	$(BIN)/ruff check amex tests analysis examples
 	$(BIN)/mypy amex
 
 ## Medians of the inner step, an episode, the reference plan and every method's outer step.

@@ -37,12 +37,14 @@ def _register_schemas() -> None:
     from hydra.core.config_store import ConfigStore
 
     from amex.config import RunConfig
-    from amex.methods import METHODS
+    from amex.methods import BUILTIN_METHODS, METHODS
 
     cs = ConfigStore.instance()
     cs.store(name="run_schema", node=RunConfig)
     for name, cls in METHODS.items():
         cs.store(group="method", name=f"schema_{name}", node=cls.config_class)
+        if name not in BUILTIN_METHODS:  # a plugin: ``method=<name>`` is its dataclass's defaults
+            cs.store(group="method", name=name, node=cls.config_class)
 
 
 def _top_level_keys() -> list[str]:

@@ -8,8 +8,9 @@ appears with two configurations, then writes into ``analysis/out/``:
   0.05 m, collisions, final time, sum of squared accelerations and compute time as mean ± 2 std,
   with the paper's Fig. 5 row beside ours;
 * ``paired.csv`` and a section of ``fig5.md``: paired comparisons on identical environments (AMEX vs
-  DMP, AMEX vs CR, and any other pair present): mean difference with a bootstrap 95 % interval and
-  the Wilcoxon signed-rank p-value;
+  DMP, AMEX vs CR, AMEX vs DMP with phase stopping, DMP vs CR, and any other method, e.g. a
+  plugin, against AMEX, DMP and CR): mean difference with a bootstrap 95 % interval and the
+  Wilcoxon signed-rank p-value;
 * the paper's qualitative claims, each marked holds / fails / n/a in ``fig5.md``, plus one
   diagnostic: smoothness at equal duration (:func:`duration_invariant_smoothness`).
 
@@ -166,9 +167,11 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
 
     records = []
     methods = set(df.method)
+    others = sorted(methods - set(METHOD_ORDER))  # e.g. plugin methods: each against the paper's
+    pairs = [*PAIRS, *((m, b) for m in others for b in ("amex", "dmp", "cr"))]
     for task in sorted(df.task.unique()):
         sub = df[df.task == task]
-        for a, b in PAIRS:
+        for a, b in pairs:
             if a not in methods or b not in methods:
                 continue
             wide = sub[sub.method.isin([a, b])].pivot(index="env", columns="method")

@@ -81,3 +81,26 @@ def test_duration_invariant_smoothness_is_unchanged_by_slowing_a_motion_down():
     assert slow[0] < 0.6 * fast[0]  # 20 % slower: (1 / 1.2)^3 = 0.58 of the raw sum
     a, b = (duration_invariant_smoothness(*x) for x in (fast, slow))
     assert abs(a - b) / a < 1e-3
+
+
+def test_a_method_outside_the_paper_is_paired_with_the_papers_methods():
+    import pandas as pd
+
+    from analysis.table import paired
+
+    rows = [
+        {
+            "task": 1,
+            "method": m,
+            "env": e,
+            "success": True,
+            "final_time": 4.0 + e + (m == "servo"),
+            "sum_sq_acc": 10.0 * (e + 1),
+            "sum_sq_acc_t3": 1.0,
+        }
+        for m in ("amex", "servo")
+        for e in range(4)
+    ]
+    pairs = paired(pd.DataFrame(rows))
+    row = pairs[(pairs.a == "servo") & (pairs.b == "amex") & (pairs.metric == "final_time")]
+    assert len(row) == 1 and row.mean_diff.iloc[0] == 1.0
