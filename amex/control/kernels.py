@@ -212,30 +212,13 @@ def cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> int:
 
 
 @numba.njit(cache=True)
-def osc_accelerations(  # see normal_equations
-    A: np.ndarray,
-    b: np.ndarray,
-    x: np.ndarray,
-    J: np.ndarray,
-    v: np.ndarray,
-    q: np.ndarray,
-    H: np.ndarray,
-    drift: np.ndarray,
-    task_on: bool,
-    ty: np.ndarray,
-    tyd: np.ndarray,
-    joint_on: bool,
-    tq: np.ndarray,
-    tqd: np.ndarray,
-    q_rest: np.ndarray,
-    col_phi: float,
-    Jc: np.ndarray,
-    prm: np.ndarray,
-) -> int:
-    """:func:`normal_equations` then :func:`cholesky_solve` into ``x``; returns its ``info``."""
-    normal_equations(
-        A, b, J, v, q, H, drift, task_on, ty, tyd, joint_on, tq, tqd, q_rest, col_phi, Jc, prm
-    )
+def osc_accelerations(A: np.ndarray, b: np.ndarray, x: np.ndarray, *args) -> int:
+    """:func:`normal_equations` (``A``, ``b`` and ``args``) then :func:`cholesky_solve` into ``x``.
+
+    Returns:
+        the solve's ``info`` (0 on success).
+    """
+    normal_equations(A, b, *args)
     return cholesky_solve(A, b, x)
 
 
