@@ -8,7 +8,7 @@ not have to: a bad shape, range or non-finite value raises here, carrying the pr
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
 import numpy as np
@@ -39,14 +39,7 @@ class TrajectoryCosts:
     collision_margin: float = 0.02  # [m]
 
     def __post_init__(self) -> None:
-        for name in (
-            "acceleration",
-            "final_position",
-            "final_velocity",
-            "final_axis",
-            "final_axis_velocity",
-            "collision",
-        ):
+        for name in (f.name for f in fields(self) if f.name != "collision_margin"):  # weights
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
