@@ -17,7 +17,6 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import argparse  # noqa: E402
 import statistics  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -26,6 +25,7 @@ from pathlib import Path  # noqa: E402
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
+from amex.argparsing import OneLineParser  # noqa: E402
 from amex.config import RunConfig  # noqa: E402
 from amex.control.collision import CollisionModel  # noqa: E402
 from amex.control.osc import Command, OperationalSpaceController  # noqa: E402
@@ -132,7 +132,7 @@ def _us(x: float | np.floating) -> str:
 
 def main(argv: list[str] | None = None) -> None:
     """Print the benchmark table."""
-    parser = argparse.ArgumentParser(prog="amex-bench", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="amex-bench", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
     parser.add_argument(
         "--episodes", type=int, default=1, help="Task-3 environments per method's step timing"

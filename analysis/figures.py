@@ -9,9 +9,10 @@
 
 from __future__ import annotations
 
-import argparse
 import os
 from pathlib import Path
+
+from amex.argparsing import OneLineParser
 
 HERE = Path(__file__).resolve().parent
 
@@ -19,7 +20,7 @@ HERE = Path(__file__).resolve().parent
 def main(argv: list[str] | None = None) -> int:
     """Draw the figures; print the files written."""
     os.environ.setdefault("MPLBACKEND", "Agg")
-    parser = argparse.ArgumentParser(prog="make figures", description=__doc__.splitlines()[0])
+    parser = OneLineParser(prog="make figures", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "out")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -25,7 +25,6 @@ Usage: ``python -m analysis.pr2 [--episodes 30] [--stall-episodes 30] [--runs DI
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from collections.abc import Sequence
@@ -35,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amex.argparsing import OneLineParser
 from analysis.robustness import _markdown, paired_stats
 from analysis.table import aggregate, combined, load_runs, paired, paper_table
 
@@ -531,7 +531,7 @@ def write_outputs(study: PR2Study, runs: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
-    parser = argparse.ArgumentParser(prog="python -m analysis.pr2", description=__doc__)
+    parser = OneLineParser(prog="python -m analysis.pr2", description=__doc__)
     parser.add_argument("--episodes", type=int, default=30, help="environments per task/method")
     parser.add_argument("--stall-episodes", type=int, default=30, help="0: skip the stall part")
     parser.add_argument("--runs", type=Path, default=Path("runs"))

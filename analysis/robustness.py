@@ -29,7 +29,6 @@ Usage: ``python -m analysis.robustness [--episodes 50] [--quick] [--runs DIR] [-
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import math
 import os
@@ -41,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amex.argparsing import OneLineParser
 from analysis.table import _markdown, bootstrap_ci, load_runs
 
 HERE = Path(__file__).resolve().parent
@@ -521,7 +521,7 @@ def write_outputs(study: Study, runs_dir: Path, out_dir: Path, quick: bool = Fal
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
-    parser = argparse.ArgumentParser(prog="python -m analysis.robustness", description=__doc__)
+    parser = OneLineParser(prog="python -m analysis.robustness", description=__doc__)
     parser.add_argument("--episodes", type=int, default=50, help="environments per cell")
     parser.add_argument("--quick", action="store_true", help="smoke version: 2 environments")
     parser.add_argument("--runs", type=Path, default=Path("runs/robustness"))

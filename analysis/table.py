@@ -22,7 +22,6 @@ Usage: ``python -m analysis.table [RUNS_DIR] [--out DIR]``.
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -32,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from amex.argparsing import OneLineParser
 from amex.errors import AmexError
 from amex.store import StoreError, read_rows
 
@@ -242,9 +242,7 @@ def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
             get(t, "cr", "sum_sq_acc_t3_median")
             < min(get(t, "amex", "sum_sq_acc_t3_median"), get(t, "dmp", "sum_sq_acc_t3_median"))
         ),
-        lambda t: ", ".join(
-            f"{m} {get(t, m, 'sum_sq_acc_t3_median'):.3g}" for m in paper_methods
-        ),
+        lambda t: ", ".join(f"{m} {get(t, m, 'sum_sq_acc_t3_median'):.3g}" for m in paper_methods),
     )
     verdict(
         "AMEX is smoother than DMP",
@@ -373,9 +371,7 @@ def write_outputs(root: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.table [RUNS] [--out DIR]``."""
-    parser = argparse.ArgumentParser(
-        prog="make table", description="Fig. 5 from episodes.csv files"
-    )
+    parser = OneLineParser(prog="make table", description="Fig. 5 from episodes.csv files")
     parser.add_argument("runs", nargs="?", default="runs", type=Path)
     parser.add_argument("--out", default=HERE / "out", type=Path)
     args = parser.parse_args(argv)

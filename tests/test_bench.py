@@ -16,4 +16,5 @@ def test_bench_refuses_zero_episodes(capsys):
     with pytest.raises(SystemExit) as info:
         main(["--steps-only", "--episodes", "0"])
     assert info.value.code == 2
-    assert "--episodes 0" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "--episodes 0" in err and err.count("\n") == 1

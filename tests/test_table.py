@@ -104,3 +104,12 @@ def test_a_method_outside_the_paper_is_paired_with_the_papers_methods():
     pairs = paired(pd.DataFrame(rows))
     row = pairs[(pairs.a == "servo") & (pairs.b == "amex") & (pairs.metric == "final_time")]
     assert len(row) == 1 and row.mean_diff.iloc[0] == 1.0
+
+
+def test_an_unknown_option_is_one_line_and_exit_2(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["--bogus"])
+    err = capsys.readouterr().err
+    assert info.value.code == 2
+    assert err.startswith("make table: error: unrecognized arguments: --bogus")
+    assert err.count("\n") == 1

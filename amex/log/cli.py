@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from amex.argparsing import OneLineParser, fail
 from amex.errors import AmexError
 from amex.log.plot3d import set_equal_axes_3d
 from amex.log.reader import LogData, LogError, read_log, recover, topics_with_numbers
@@ -26,16 +27,15 @@ LAYOUT_FILE = Path(__file__).with_name("foxglove_layout.json")
 URDF_PLACEHOLDER = "PANDA_URDF_PATH"
 
 
-class _Parser(argparse.ArgumentParser):
-    """argparse, but a usage error is one line (``amex-log: error: ...``) and exit code 2."""
+def _fail(message: str) -> NoReturn:
+    fail(PROG, message)
+
+
+class _Parser(OneLineParser):
+    """Sub-commands' usage errors too are reported as ``amex-log: error: ...``."""
 
     def error(self, message: str) -> NoReturn:
         _fail(f"{message} (see `{PROG} --help`)")
-
-
-def _fail(message: str) -> NoReturn:
-    sys.stderr.write(f"{PROG}: error: {' '.join(message.split())}\n")
-    raise SystemExit(2)
 
 
 def _parser() -> _Parser:
