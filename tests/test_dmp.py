@@ -12,21 +12,7 @@ from amex.methods.base import Observation
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.plan.reference import ReferencePlan
-
-T_REF = 4.0
-DT_REF = 0.01
-Y0 = np.array([0.40, -0.10, 0.50, 0.0, 0.0, -1.0])
-G_REF = np.array([0.55, 0.05, 0.40, 0.6, 0.0, -0.8])  # a 0.25 m reach, the axis tilting
-
-
-def reference_at(t: np.ndarray) -> np.ndarray:
-    """A min-jerk reach from Y0 to G_REF with a 5 cm bump in z, shape (len(t), 6)."""
-    s = np.clip(np.asarray(t, dtype=float) / T_REF, 0.0, 1.0)
-    mj = 10 * s**3 - 15 * s**4 + 6 * s**5
-    y = Y0 + mj[:, None] * (G_REF - Y0)
-    y[:, 2] += 0.05 * np.sin(np.pi * s) ** 2
-    return y
-
+from analysis.bench_dmp import DT_REF, G_REF, T_REF, Y0, reference_at  # the shared reference
 
 REFERENCE = reference_at(np.arange(401) * DT_REF)
 
