@@ -25,7 +25,7 @@ from amex.metrics import EpisodeResult, summarize
 from amex.plan.cache import reference_plan
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
-from amex.scenario import make_scenario
+from amex.scenario import make_scenario, reference_goal
 from amex.store import EpisodeStore, config_hash, scene_hash
 
 log = logging.getLogger(__name__)
@@ -44,11 +44,11 @@ class RunContext:
 
 def prepare(config: RunConfig) -> RunContext:
     """Load the robot and get the reference plan (solved, or from the disk cache)."""
-    robot = load_robot(config.robot.name, tuple(config.robot.q0))
+    robot = load_robot(config.robot)
     plan = reference_plan(
         robot,
         config.plan,
-        np.asarray(config.scenario.reference_goal, dtype=float),
+        reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation),
         np.asarray(config.scenario.goal_axis, dtype=float),
     )
     return RunContext(robot, plan)
@@ -62,7 +62,9 @@ def run_one(
     With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
     """
     method_cls = get_method(config.method.name)
-    method = method_cls.from_plan(context.plan, config.method, 1.0 / config.outer_hz, context.robot)
+    method = method_cls.from_plan(
+        context.plan, config.method_config(), 1.0 / config.outer_hz, context.robot
+    )
     scenario = make_scenario(
         config.scenario,
         config.task,

@@ -1,6 +1,7 @@
 """Compute the reference plan once per configuration and keep it on disk.
 
-The cache key is a SHA-256 of everything the plan depends on: the URDF's bytes, the start
+The cache key is a SHA-256 of everything the plan depends on: the robot (its cleaned
+description, :attr:`~amex.robot.RobotModel.fingerprint`), the start
 configuration, the goal, the plan settings and :data:`PLAN_FORMAT` (bumped when the optimizer's
 mathematics change). Files are written atomically, so parallel workers can share the cache.
 """
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from amex.paths import cache_dir
 from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
@@ -22,21 +24,12 @@ from amex.robot import RobotModel
 PLAN_FORMAT = 1
 
 
-def cache_dir() -> Path:
-    """``$AMEX_CACHE_DIR``, else ``$XDG_CACHE_HOME/amex``, else ``~/.cache/amex``."""
-    if "AMEX_CACHE_DIR" in os.environ:
-        return Path(os.environ["AMEX_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "amex"
-
-
 def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
     """Hex digest identifying the plan for this robot, start, goal and settings."""
     h = hashlib.sha256()
-    h.update(Path(robot.urdf_path).read_bytes())
     spec = {
         "format": PLAN_FORMAT,
-        "robot": robot.name,
+        "robot": robot.fingerprint,
         "q0": [float(x) for x in robot.q0],
         "goal_pos": [float(x) for x in goal_pos],
         "goal_axis": [float(x) for x in goal_axis],
