@@ -40,6 +40,7 @@ _NOT_RESULTS = ("episodes", "log")
 _ADDED_OPTIONS: dict[tuple[str, ...], object] = {
     ("perception", "preview"): 0.0,
     ("sim",): "dynamic",
+    ("plan", "metric"): "identity",
     ("scenario", "reference_offset"): [0.385, 1.147, -0.131],
     ("robot", "urdf"): "",
     ("robot", "joints"): [],

@@ -154,6 +154,8 @@ class CR(Method):
         reference_dt: its sample period [s]; T_ref = N reference_dt.
         dt: outer (control) period [s]: the command is the plan at t + dt / 2 (module notes).
         config: CR settings (default :class:`CRConfig`).
+        metric: joint metric diag(H) of the acceleration cost, the reference plan's (empty:
+            identity).
 
     Raises:
         ConfigError: for invalid settings or a reference of the wrong shape.
@@ -169,6 +171,7 @@ class CR(Method):
         reference_dt: float,
         dt: float,
         config: CRConfig | None = None,
+        metric: tuple[float, ...] = (),
     ) -> None:
         from amex.plan.optimizer import TrajectoryCosts, batch_kinematics
 
@@ -199,6 +202,7 @@ class CR(Method):
             final_axis_velocity=c.final_axis_velocity,
             collision=c.collision,
             collision_margin=c.collision_margin,
+            metric=metric,
         )
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
@@ -223,7 +227,7 @@ class CR(Method):
         if not isinstance(config, CRConfig):  # any object with CRConfig's fields
             names = {f.name for f in fields(CRConfig)}
             config = CRConfig(**{k: getattr(config, k) for k in names if hasattr(config, k)})
-        return cls(robot, plan.q, plan.dt, dt, config)
+        return cls(robot, plan.q, plan.dt, dt, config, plan.metric)
 
     # ----------------------------------------------------------------------------- state
     def restart(self) -> None:

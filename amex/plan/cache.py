@@ -18,6 +18,7 @@ import numpy as np
 
 from amex.paths import cache_dir
 from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
+from amex.plan.problem import joint_metric
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
 
@@ -43,7 +44,8 @@ def solve_reference(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> ReferencePlan:
     """Solve the reference problem (no obstacles, start at rest in ``robot.q0``) from scratch."""
-    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0)
+    metric = joint_metric(config.metric, robot.nv)
+    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0, metric=metric)
     problem = TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),
@@ -57,7 +59,7 @@ def solve_reference(
     )
     solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
     y = np.array([robot.task_position(q) for q in solution.q])
-    return ReferencePlan(q=solution.q, y=y, dt=config.dt)
+    return ReferencePlan(q=solution.q, y=y, dt=config.dt, metric=metric)
 
 
 def reference_plan(
@@ -73,7 +75,8 @@ def reference_plan(
     if path.exists():
         try:
             with np.load(path) as f:
-                return ReferencePlan(q=f["q"], y=f["y"], dt=float(f["dt"]))
+                metric = joint_metric(config.metric, robot.nv)
+                return ReferencePlan(q=f["q"], y=f["y"], dt=float(f["dt"]), metric=metric)
         except (OSError, ValueError, KeyError):
             pass  # unreadable (e.g. truncated by a crash): recompute and overwrite
     plan = solve_reference(robot, config, goal_pos, goal_axis)

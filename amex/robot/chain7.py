@@ -10,8 +10,11 @@ is a visual only. Reach: 2.6 m from the shoulder.
 
 The original simulation was kinematic and had no masses. For ``sim=dynamic`` the links get
 masses of 4, 3.5, 3, 2.5, 2 and 1.5 kg (solid cylinders) and the tip 0.5 kg, and torque limits
-about twice the largest gravity torque each joint can see (the shoulder needs 172 N m at the start
-pose). The original had no joint limits; the URDF states +-2 pi, which nothing reaches.
+about six times the largest gravity torque each joint can see (the shoulder needs 170 N m at the
+start pose; free reaching motions peak at 180-270 N m there, DMP's collision-avoidance transients
+on Tasks 3-4 at up to 2000 N m, which saturate: with limits of twice the gravity torque such
+saturations made a few of those episodes diverge). The original had no joint limits; the URDF
+states +-2 pi.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import math
 #: Link masses of links 1-6 and the tip (link 7) [kg] (not in the original: it was kinematic).
 MASSES = (4.0, 3.5, 3.0, 2.5, 2.0, 1.5, 0.5)
 #: Symmetric torque limits of joints 1-7 [N m].
-TORQUE_LIMITS = (400.0, 250.0, 150.0, 80.0, 40.0, 15.0, 4.0)
+TORQUE_LIMITS = (1000.0, 600.0, 400.0, 250.0, 120.0, 40.0, 8.0)
 #: Joint speed limit [rad/s] (the original had none; used for the divergence check).
 VELOCITY_LIMIT = 3.0
 LINK_LENGTH = 0.4  # [m]
