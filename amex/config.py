@@ -62,6 +62,8 @@ class RunConfig:
         sim: ``dynamic`` (MuJoCo integrates the torques of the inner controller) or
             ``kinematic`` (the controller's joint accelerations are integrated directly, as the
             authors' code did; :mod:`amex.episode`).
+        state_lag: methods and the stop rule see the task state one inner step late, as in the
+            authors' loop (:mod:`amex.episode`).
         log: ``none`` or ``full`` (one MCAP file per episode).
         perception: goal noise and latency (default exact).
         prediction: constant-velocity Kalman prediction of the goal (default off).
@@ -85,6 +87,7 @@ class RunConfig:
     success_radius: float = 0.03
     stop_radius: float = field(default=0.03, metadata=scaled(1))
     sim: str = "dynamic"
+    state_lag: bool = False
     log: str = "none"
 
     @property
@@ -99,6 +102,7 @@ class RunConfig:
             success_radius=float(self.success_radius),
             stop_radius=stop,
             kinematic=self.sim == "kinematic",
+            state_lag=bool(self.state_lag),
         )
 
     def method_config(self) -> Any:

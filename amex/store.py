@@ -29,7 +29,7 @@ from typing import Any
 
 import amex
 from amex.errors import AmexError
-from amex.metrics import COLUMNS, EpisodeResult
+from amex.metrics import COLUMNS, REQUIRED_COLUMNS, EpisodeResult
 
 HASH_COLUMNS = ("config_hash", "scene_hash")
 CSV_COLUMNS = COLUMNS + HASH_COLUMNS
@@ -40,6 +40,7 @@ _NOT_RESULTS = ("episodes", "log")
 _ADDED_OPTIONS: dict[tuple[str, ...], object] = {
     ("perception", "preview"): 0.0,
     ("sim",): "dynamic",
+    ("state_lag",): False,
     ("plan", "metric"): "identity",
     ("scenario", "reference_offset"): [0.385, 1.147, -0.131],
     ("robot", "urdf"): "",
@@ -121,6 +122,8 @@ def parse_result(row: dict[str, str]) -> EpisodeResult:
     """An :class:`EpisodeResult` from a csv row (as read by ``csv.DictReader``)."""
     values: dict[str, Any] = {}
     for f in fields(EpisodeResult):
+        if f.name not in row and f.name not in REQUIRED_COLUMNS:
+            continue  # a metric added after the file was written: its default (nan)
         text = row[f.name]
         if f.type in ("bool", bool):
             values[f.name] = text == "1"
@@ -153,7 +156,7 @@ def read_rows(path: Path) -> list[dict[str, str]]:
         header = next(reader)
     except StopIteration:
         raise StoreError(f"{path}: no header line") from None
-    if tuple(header[: len(COLUMNS)]) != COLUMNS:
+    if tuple(header[: len(REQUIRED_COLUMNS)]) != REQUIRED_COLUMNS:
         raise StoreError(f"{path}: not an amex episodes.csv (header {','.join(header[:4])}...)")
     rows = []
     for lineno, values in enumerate(reader, start=2):
@@ -206,7 +209,7 @@ class EpisodeStore:
         with open(tmp, "w") as f:
             f.write(_line(list(CSV_COLUMNS)))
             for row in rows:
-                f.write(_line([row[c] for c in CSV_COLUMNS]))
+                f.write(_line([row.get(c, "nan") for c in CSV_COLUMNS]))
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, self.path)
