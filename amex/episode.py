@@ -298,6 +298,8 @@ def run_episode(
                 tic = time.perf_counter_ns()
                 command = method.step(obs)
                 compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
+                if method.finished:  # the method ended the execution (the authors' CR)
+                    break
                 _check_command(command)
             if lag:  # what the next step's stop rule and observation see
                 seen_tcp = state.y_list[:3]

@@ -25,7 +25,7 @@ from amex.metrics import EpisodeResult, summarize
 from amex.plan.cache import reference_plan
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
-from amex.scenario import make_scenario, reference_goal
+from amex.scenario import make_scenario, plan_goal
 from amex.store import EpisodeStore, config_hash, scene_hash
 
 log = logging.getLogger(__name__)
@@ -48,7 +48,7 @@ def prepare(config: RunConfig) -> RunContext:
     plan = reference_plan(
         robot,
         config.plan,
-        reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation),
+        plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation),
         np.asarray(config.scenario.goal_axis, dtype=float),
     )
     return RunContext(robot, plan)
@@ -61,7 +61,7 @@ def run_one(
 
     With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
     """
-    method_cls = get_method(config.method.name)
+    method_cls = get_method(config.method.name, config.implementation)
     method = method_cls.from_plan(
         context.plan, config.method_config(), 1.0 / config.outer_hz, context.robot
     )

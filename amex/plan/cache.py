@@ -17,7 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from amex.paths import cache_dir
-from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
+from amex.plan.optimizer import (
+    TrajectoryCosts,
+    TrajectoryProblem,
+    solve_trajectory,
+    solve_trajectory_newton,
+)
 from amex.plan.problem import joint_metric
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
@@ -45,7 +50,12 @@ def solve_reference(
 ) -> ReferencePlan:
     """Solve the reference problem (no obstacles, start at rest in ``robot.q0``) from scratch."""
     metric = joint_metric(config.metric, robot.nv)
-    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0, metric=metric)
+    costs = TrajectoryCosts(
+        **config.cost_weights(),
+        collision=0.0,
+        metric=metric,
+        final_velocity_space=config.final_velocity_space,
+    )
     problem = TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),
@@ -57,7 +67,10 @@ def solve_reference(
         obstacle_radii=np.zeros(0),
         costs=costs,
     )
-    solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
+    if config.solver == "newton":
+        solution = solve_trajectory_newton(robot, problem, max_iterations=config.max_iterations)
+    else:
+        solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
     y = np.array([robot.task_position(q) for q in solution.q])
     return ReferencePlan(q=solution.q, y=y, dt=config.dt, metric=metric)
 
