@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow lint bench table figures studies paper ablation clean
+.PHONY: install run test test-slow test-viewer lint bench table figures studies paper ablation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,6 +26,18 @@ test: $(STAMP)
 ## Long end-to-end tests (marked slow).
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
+
+## Logs in a real browser viewer: Debian's chromium and Foxglove Studio 1.48 (npm), installed here
+## if missing, open logged episodes headless; every topic listed, no player problems (~3 min).
+VIEWER := viewer
+$(VIEWER)/node_modules/.installed: $(VIEWER)/package.json $(VIEWER)/package-lock.json
+	@command -v chromium >/dev/null || { apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium; }
+	cd $(VIEWER) && npm ci --no-audit --no-fund --loglevel=error
+	touch $@
+
+test-viewer: $(STAMP) $(VIEWER)/node_modules/.installed
+	$(BIN)/python -m pytest -q -m viewer -p no:cacheprovider
 
 lint: $(STAMP)
 	$(BIN)/ruff check amex tests analysis examples
