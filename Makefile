@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-viewer lint bench table figures studies paper ablation clean
+.PHONY: install run test test-slow test-viewer render-deps lint bench table figures studies paper ablation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,12 @@ $(VIEWER)/node_modules/.installed: $(VIEWER)/package.json $(VIEWER)/package-lock
 
 test-viewer: $(STAMP) $(VIEWER)/node_modules/.installed
 	$(BIN)/python -m pytest -q -m viewer -p no:cacheprovider
+
+## Headless OpenGL for amex-log video and Fig. 4's render: Debian's EGL (Mesa), if missing.
+render-deps: $(STAMP)
+	@$(BIN)/python -c "from amex.log.render import gl_context; gl_context(8, 8).free()" 2>/dev/null || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends libegl1 libegl-mesa0 libgl1-mesa-dri; }
 
 lint: $(STAMP)
 	$(BIN)/ruff check amex tests analysis examples

@@ -63,6 +63,14 @@ def _parser() -> _Parser:
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="0: any free port")
     p.add_argument("--host", default="127.0.0.1", help="interface to listen on")
     p.add_argument("--studio", type=Path, metavar="DIR", help="a Foxglove Studio web build")
+    p = sub.add_parser(
+        "video", help="film an episode (MuJoCo render, MP4); 2-3 logs of one env side by side"
+    )
+    p.add_argument("files", type=Path, nargs="+", metavar="FILE")
+    p.add_argument("-o", "--output", type=Path, metavar="MP4", help="default: FILE with .mp4")
+    p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
+    p.add_argument("--size", default="640x480", metavar="WxH", help="one panel [px]")
+    p.add_argument("--speed", type=float, default=1.0, help="simulated s per s of film")
     return parser
 
 
@@ -76,6 +84,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "recover": recover_cmd,
         "layout": layout,
         "view": view,
+        "video": video,
     }
     try:
         commands[args.command](args)
@@ -419,6 +428,26 @@ def view(args: argparse.Namespace) -> None:
         pass
     finally:
         server.close()
+
+
+def video(args: argparse.Namespace) -> None:
+    """Render the episode(s) into an MP4 film."""
+    from amex.log.video import render_video
+
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise LogError(f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, e.g. 640x480") from None
+    output = args.output or args.files[0].with_suffix(".mp4")
+    info = render_video(
+        args.files, output, fps=args.fps, width=width, height=height, speed=args.speed
+    )
+    if info.different_environments:
+        sys.stderr.write(f"{PROG}: note: the logs are of different environments\n")
+    sys.stdout.write(
+        f"wrote {info.path} ({info.path.stat().st_size / 1e3:.0f} kB, {info.frames} frames, "
+        f"{info.seconds:.1f} s, {info.width}x{info.height})\n"
+    )
 
 
 if __name__ == "__main__":
