@@ -58,6 +58,7 @@ class Episode:
     radii: np.ndarray  # (k,) [m]
     outcome: dict[str, Any]
     urdf_path: str
+    package_dirs: list[str]
     joint_names: list[str]
 
 
@@ -84,6 +85,7 @@ def episode_from_log(path: Path | str) -> Episode:
         radii=scenario.obstacle_radii,
         outcome=data.outcome or {},
         urdf_path=str(robot.get("urdf_path", "")),
+        package_dirs=[str(d) for d in robot.get("package_dirs") or []],
         joint_names=[str(j) for j in robot.get("joint_names", [])],
     )
 
@@ -289,7 +291,7 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
     )
 
     first = next(iter(episodes.values()))
-    model = arm_model(first.urdf_path, samples=4, alpha=0.45)
+    model = arm_model(first.urdf_path, 4, 0.45, first.package_dirs)
     model.vis.global_.offwidth, model.vis.global_.offheight = width, height
     data = mujoco.MjData(model)
     addresses = joint_addresses(model, first.joint_names)

@@ -334,3 +334,8 @@ def test_layout_points_the_urdf_layer_at_the_logs_urdf(logged, tmp_path):
     layout = json.loads(out.read_text())
     urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]
     assert urdf["layerId"] == "foxglove.Urdf" and Path(urdf["filePath"]).exists()
+    assert main(["layout", "--robot", "ur5", "-o", str(out)]) == 0  # no log: a catalogue robot
+    layout = json.loads(out.read_text())
+    urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]
+    assert urdf["filePath"].endswith("ur5_robot.urdf") and Path(urdf["filePath"]).exists()
+    assert len(layout["configById"]["Plot!qdd"]["paths"]) == 6

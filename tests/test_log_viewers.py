@@ -40,6 +40,20 @@ def logs(tmp_path_factory):
     return paths
 
 
+@pytest.fixture(scope="module")
+def robot_logs(tmp_path_factory):
+    """0.3 s of Task 1 with AMEX on the other catalogue arms: {robot: path}."""
+    from amex.cli import load_config
+
+    out = tmp_path_factory.mktemp("robots")
+    paths = {}
+    for robot in ("ur5", "chain7"):
+        config = load_config([f"robot={robot}", "task=1", "method=amex", "max_time=0.3"])
+        paths[robot] = out / f"{robot}.mcap"
+        run_one(config, prepare(config), 0, paths[robot])
+    return paths
+
+
 def _json_schemas(path):
     from mcap.reader import make_reader
 
@@ -196,3 +210,21 @@ def test_view_prints_the_urls_and_serves_until_stopped(logs):
     finally:
         proc.terminate()
         proc.wait(timeout=10)
+
+
+@pytest.mark.parametrize("robot", ["ur5", "chain7"])
+def test_any_logged_robot_is_served_with_its_own_links_and_meshes(robot_logs, robot):
+    data = read_log(robot_logs[robot])
+    meta = data.metadata["robot"]
+    assert meta["name"] == robot
+    with LogServer(data, port=0) as server:
+        with urllib.request.urlopen(server.urls.urdf) as response:
+            text = response.read().decode()
+        links = {link.get("name") for link in ET.fromstring(text.split("\n", 1)[1]).iter("link")}
+        assert {child for _, child in meta["links"]} <= links  # /tf's frames are URDF links
+        assert "package://" not in text
+        for mesh in ET.fromstring(text.split("\n", 1)[1]).iter("mesh"):
+            with urllib.request.urlopen(mesh.get("filename")) as response:
+                assert response.status == 200 and response.read(4)
+    lines = build_layout(data)["configById"]["Plot!qdd"]["paths"]
+    assert [line["label"] for line in lines] == meta["joint_names"]

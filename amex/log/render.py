@@ -17,6 +17,7 @@ from __future__ import annotations
 import os
 import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +56,7 @@ def gl_context(width: int, height: int) -> Any:
     raise RenderError(f"no headless OpenGL here ({'; '.join(errors)}); {GL_HELP}")
 
 
-def _collision_urdf(urdf_path: Path) -> str:
+def _collision_urdf(urdf_path: Path, package_dirs: Sequence[str] = ()) -> str:
     """The URDF without visuals, every collision mesh an absolute path MuJoCo can read."""
     try:
         root = ET.fromstring(urdf_path.read_text())
@@ -66,7 +67,7 @@ def _collision_urdf(urdf_path: Path) -> str:
             link.remove(visual)
         for collision in link.findall("collision"):
             for mesh in collision.iter("mesh"):
-                path = resolve_mesh(mesh.get("filename", ""), urdf_path)
+                path = resolve_mesh(mesh.get("filename", ""), urdf_path, package_dirs)
                 if path is None or path.suffix.lower() not in MESH_FORMATS:
                     link.remove(collision)
                     break
@@ -74,7 +75,9 @@ def _collision_urdf(urdf_path: Path) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def arm_model(urdf_path: str, samples: int = 4, alpha: float = 0.5) -> Any:
+def arm_model(
+    urdf_path: str, samples: int = 4, alpha: float = 0.5, package_dirs: Sequence[str] = ()
+) -> Any:
     """The arm as a MuJoCo model for drawing (no obstacles, no actuation; see module notes).
 
     Args:
@@ -82,10 +85,11 @@ def arm_model(urdf_path: str, samples: int = 4, alpha: float = 0.5) -> Any:
         samples: multisampling of the offscreen buffer (0 renders a video frame ~3x faster in
             software, with jagged edges).
         alpha: opacity of the arm (translucent keeps the paths behind it visible).
+        package_dirs: where ``package://`` mesh URLs resolve first.
     """
     import mujoco
 
-    text = _collision_urdf(Path(urdf_path))
+    text = _collision_urdf(Path(urdf_path), package_dirs)
     with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
         f.write(text)
     try:

@@ -200,7 +200,9 @@ class LogServer:
         robot = data.metadata.get("robot", {})
         urdf_url: str | None = None
         if robot.get("urdf_path"):
-            urdf = viewer_urdf(robot["urdf_path"], f"{base}/robot/")
+            urdf = viewer_urdf(
+                robot["urdf_path"], f"{base}/robot/", robot.get("package_dirs") or ()
+            )
             site.texts["/robot/robot.urdf"] = (urdf.text.encode(), "application/xml")
             site.files.update({f"/robot/{k}": v for k, v in urdf.files.items()})
             urdf_url = f"{base}/robot/robot.urdf"

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote, unquote, urlparse
@@ -37,12 +38,21 @@ class ViewerUrdf:
     replaced: tuple[str, ...] = ()
 
 
-def resolve_mesh(filename: str, urdf_path: Path) -> Path | None:
-    """The file a URDF mesh reference points to, or None if it is not on this machine."""
+def resolve_mesh(
+    filename: str, urdf_path: Path, package_dirs: Sequence[str | Path] = ()
+) -> Path | None:
+    """The file a URDF mesh reference points to, or None if it is not on this machine.
+
+    Args:
+        filename: the mesh's ``filename`` attribute.
+        urdf_path: the URDF it appears in (relative paths start there).
+        package_dirs: directories searched first for ``package://`` URLs (the robot's own).
+    """
     base = urdf_path.parent
     if filename.startswith("package://"):
         package, _, rest = filename[len("package://") :].partition("/")
-        roots = [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
+        roots = [Path(p) for p in package_dirs]
+        roots += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
         for root in [*roots, base, *base.resolve().parents]:
             if root.name == package and (root / rest).is_file():
                 return (root / rest).resolve()
@@ -56,12 +66,15 @@ def resolve_mesh(filename: str, urdf_path: Path) -> Path | None:
     return path.resolve() if path.is_file() else None
 
 
-def viewer_urdf(urdf_path: Path | str, base_url: str) -> ViewerUrdf:
+def viewer_urdf(
+    urdf_path: Path | str, base_url: str, package_dirs: Sequence[str | Path] = ()
+) -> ViewerUrdf:
     """The URDF at ``urdf_path`` with its meshes under ``base_url`` (see the module notes).
 
     Args:
         urdf_path: the robot's URDF file.
         base_url: absolute URL the meshes are served under, ending in ``/``.
+        package_dirs: where ``package://`` URLs resolve first (the log's ``robot`` metadata).
 
     Raises:
         LogError: the URDF is missing or is not XML.
@@ -86,7 +99,7 @@ def viewer_urdf(urdf_path: Path | str, base_url: str) -> ViewerUrdf:
             filename = mesh.get("filename", "")
             if filename.startswith(base_url):
                 continue
-            path = resolve_mesh(filename, urdf_path)
+            path = resolve_mesh(filename, urdf_path, package_dirs)
             if path is None:
                 ok = False
                 continue

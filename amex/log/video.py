@@ -44,6 +44,7 @@ class EpisodeTrack:
 
     method: str
     urdf_path: str
+    package_dirs: list[str]
     joint_names: list[str]
     t: np.ndarray  # (n,) times of the joint states [s]
     q: np.ndarray  # (n, joints) [rad]
@@ -95,6 +96,7 @@ def track_of(data: LogData) -> EpisodeTrack:
     return EpisodeTrack(
         method=str(episode.get("method", "?")),
         urdf_path=str(robot["urdf_path"]),
+        package_dirs=[str(d) for d in robot.get("package_dirs") or []],
         joint_names=[str(j) for j in robot.get("joint_names", [])],
         t=data.times("/joint_states"),
         q=data.joints("position"),
@@ -130,7 +132,7 @@ class _Panel:
         import mujoco
 
         self.track = track
-        self.model = arm_model(track.urdf_path, samples=0)
+        self.model = arm_model(track.urdf_path, samples=0, package_dirs=track.package_dirs)
         self.model.vis.global_.offwidth, self.model.vis.global_.offheight = width, height
         self.data = mujoco.MjData(self.model)
         self.addresses = joint_addresses(self.model, track.joint_names)

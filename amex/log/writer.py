@@ -300,6 +300,7 @@ class EpisodeLogger:
             {
                 "name": robot.name,
                 "urdf_path": robot.urdf_path,
+                "package_dirs": list(getattr(robot.description, "package_dirs", ()) or ()),
                 "joint_names": self._joint_names,
                 "q0": robot.q0,
                 "links": [list(link) for link in self._links.links],
