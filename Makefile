@@ -59,9 +59,10 @@ bench: $(STAMP)
 table: $(STAMP)
 	$(BIN)/python -m analysis.table $(RUNS)
 
-## The paper's figures (Fig. 2 from AMEX itself, Fig. 4 and Fig. 6 analogues) into analysis/out/.
+## Fig. 5 as plots from the runs under $(RUNS), then Fig. 2 (from AMEX itself), Fig. 4 and Fig. 6
+## analogues, into analysis/out/ (PNG and PDF).
 figures: $(STAMP)
-	$(BIN)/python -m analysis.figures
+	$(BIN)/python -m analysis.figures --runs $(RUNS)
 
 ## Beyond the paper: robustness (goal speed, noise, prediction) and pr2_like studies (~1.5 h).
 studies: $(STAMP)
