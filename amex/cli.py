@@ -17,6 +17,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import contextlib  # noqa: E402
 import itertools  # noqa: E402
+import logging  # noqa: E402
 import re  # noqa: E402
 import sys  # noqa: E402
 from dataclasses import fields  # noqa: E402
@@ -117,6 +118,12 @@ def load_config(overrides: list[str]) -> Any:
     from amex.config import validate
     from amex.errors import ConfigError
 
+    for override in overrides:  # the typed schemas behind the methods are not methods
+        key, _, value = override.lstrip("+~").partition("=")
+        if key == "method" and value.startswith("schema_"):
+            from amex.methods import METHODS
+
+            raise UsageError(f"invalid method={value!r}; valid: {', '.join(sorted(METHODS))}")
     _register_schemas()
     GlobalHydra.instance().clear()
     try:
@@ -232,6 +239,20 @@ def _fail(message: str) -> None:
     raise SystemExit(2)
 
 
+def _kept_episodes(run_dir: Path, config: Any) -> int:
+    """How many of the run's environments ``run_dir/episodes.csv`` already holds (0 if none)."""
+    from amex.store import EpisodeStore, StoreError, config_hash
+
+    path = run_dir / "episodes.csv"
+    if not path.exists() or path.stat().st_size == 0:
+        return 0
+    try:
+        rows = EpisodeStore.check(path, config_hash(config))
+    except StoreError:
+        return 0  # the run itself reports it
+    return len({int(r["env"]) for r in rows} & set(range(config.episodes)))
+
+
 def _task(cfg: Any) -> None:
     """The Hydra job: one run into Hydra's output directory, with a progress bar."""
     from hydra.core.hydra_config import HydraConfig
@@ -252,14 +273,25 @@ def _task(cfg: Any) -> None:
         logging_redirect_tqdm(),
         tqdm(total=episodes, desc=label, unit="ep", disable=quiet) as bar,
     ):
-        successes = 0
+        for handler in logging.getLogger().handlers:  # tqdm's console handler: warnings only,
+            if type(handler).__name__ == "_TqdmLoggingHandler":  # the record goes to run.log
+                handler.setLevel(logging.WARNING)
+        successes = done = 0
 
         def progress(env: int, result: Any) -> None:
-            nonlocal successes
+            nonlocal successes, done
             successes += int(result.success)
-            bar.set_postfix(success=f"{successes}/{env + 1}")
+            done += 1
+            bar.set_postfix(success=f"{successes}/{done}")
             bar.update(1)
 
+        kept = _kept_episodes(run_dir, config)
+        if kept and not quiet:
+            bar.write(
+                f"resuming {run_dir}: kept {kept} of {episodes} episodes recorded earlier, "
+                f"running the other {episodes - kept}",
+                file=sys.stderr,
+            )
         summary = run(config, run_dir, progress)
     s = summary["success"]["mean"]
     t = summary["final_time"]
@@ -275,6 +307,11 @@ def run_main() -> None:
     """``amex-run``: validate the command line, then hand it to Hydra."""
     argv = sys.argv[1:]
     debug = os.environ.get("AMEX_DEBUG") == "1"
+    if "--help" in argv or "-h" in argv:
+        from amex.usage import help_text
+
+        sys.stdout.write(help_text(Path(CONF_DIR), PROG))
+        return
     informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
     if not informational.intersection(argv):
         try:
