@@ -395,7 +395,8 @@ def _describe(bench: Benchmark) -> str:
     tasks = ", ".join(str(t) for t in sorted(df.task.unique()))
     methods = ", ".join(sorted(set(df.method), key=method_rank))
     return (
-        f"`{bench.scene_hash}`: {settings} ({len(bench.files)} runs, {len(df)} episodes; "
+        f"`{bench.scene_hash}`: {settings} ({len(bench.files)} run"
+        f"{'s' if len(bench.files) != 1 else ''}, {len(df)} episodes; "
         f"tasks {tasks}; methods {methods})"
     )
 
@@ -467,6 +468,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"make table: error: {e}", file=sys.stderr)
         return 2
     print(Path(written[0]).read_text())
+    for path in written[1:]:  # several configurations: each one's Fig. 5 table after the index
+        if path.name == "fig5.md":
+            print(f"## {path.parent.name}\n")
+            print(path.read_text().split("\n## Paired")[0].split("\n\n", 1)[1])
     for path in written:
         print(f"wrote {path}", file=sys.stderr)
     return 0
