@@ -342,4 +342,4 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
 
 
 if __name__ == "__main__":
-    print(*plot_fig4(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("analysis/out")))
+    print(*plot_fig4(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "out"))
