@@ -96,6 +96,16 @@ def arm_model(
         spec = mujoco.MjSpec.from_file(f.name)
         for geom in spec.geoms:
             geom.rgba = [0.75, 0.75, 0.78, alpha]
+        spec.compiler.discardvisual = False  # else the URDF importer drops the sky texture
+        spec.add_texture(  # a light sky behind the scene instead of black
+            name="amex_sky",
+            type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
+            builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+            rgb1=[0.95, 0.96, 0.98],
+            rgb2=[0.55, 0.62, 0.72],
+            width=64,
+            height=384,
+        )
         model = spec.compile()
     except ValueError as e:
         raise RenderError(f"MuJoCo cannot compile {urdf_path} for drawing: {e}") from e
