@@ -153,8 +153,11 @@ def _draw(episodes: dict[str, Episode], image: np.ndarray | None, why: str, path
         ]
         handles += [
             Line2D([], [], color=GOAL_COLOR, lw=3, label="goal path"),
+            Line2D([], [], color=GOAL_COLOR, marker="o", mfc="white", ls="", ms=6,
+                   label="goal start (white dot)"),
+            Line2D([], [], color=GOAL_COLOR, marker="o", ls="", ms=9, label="goal end"),
             Line2D([], [], color=OBSTACLE_COLOR, marker="o", ls="", ms=10, label="obstacle"),
-        ]
+        ]  # fmt: skip
         ax.legend(handles=handles, loc="lower left", fontsize="small", framealpha=0.85)
         ax.set_title(
             f"(a) MuJoCo render: the arm at the end of the {method_label(first.method)} episode"
