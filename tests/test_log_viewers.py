@@ -228,3 +228,32 @@ def test_any_logged_robot_is_served_with_its_own_links_and_meshes(robot_logs, ro
                 assert response.status == 200 and response.read(4)
     lines = build_layout(data)["configById"]["Plot!qdd"]["paths"]
     assert [line["label"] for line in lines] == meta["joint_names"]
+
+
+def test_view_of_a_log_whose_robot_is_not_here_is_one_line_and_exit_2(logs, tmp_path, capsys):
+    from mcap.writer import Writer
+
+    from amex.log.cli import main
+
+    raw = read_log(logs["dmp"])._raw
+    moved = tmp_path / "moved.mcap"
+    with open(moved, "wb") as f:  # the same log, recorded on a machine with the URDF elsewhere
+        writer = Writer(f)
+        writer.start()
+        schemas = {i: writer.register_schema(s.name, s.encoding, s.data)
+                   for i, s in raw.schemas.items()}  # fmt: skip
+        channels = {i: writer.register_channel(c.topic, c.message_encoding, schemas[c.schema_id])
+                    for i, c in raw.channels.items()}  # fmt: skip
+        for record in raw.metadata:
+            values = dict(record.metadata)
+            if record.name == "robot":
+                values["urdf_path"] = json.dumps("/elsewhere/panda.urdf")
+            writer.add_metadata(record.name, values)
+        for m in raw.messages:
+            writer.add_message(channels[m.channel_id], m.log_time, m.data, m.publish_time)
+        writer.finish()
+    with pytest.raises(SystemExit) as exit_info:
+        main(["view", str(moved), "--port", "0"])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and err.count("\n") == 1
+    assert "/elsewhere/panda.urdf is not on this machine" in err

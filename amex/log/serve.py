@@ -194,6 +194,14 @@ class LogServer:
     ) -> None:
         self._server = _Server((host, port), _Handler)
         self.host, self.port = host, int(self._server.server_address[1])
+        try:
+            self._build(data, host, studio_dir)
+        except BaseException:
+            self._server.server_close()  # e.g. the log's URDF is missing: free the port
+            raise
+        self._thread: threading.Thread | None = None
+
+    def _build(self, data: LogData, host: str, studio_dir: Path | None) -> None:
         base = f"http://{host}:{self.port}"
         log_path = "/" + quote(data.path.name)
         site = Site(files={unquote(log_path): data.path})
@@ -231,7 +239,6 @@ class LogServer:
                 else None
             ),
         )
-        self._thread: threading.Thread | None = None
 
     def start(self) -> LogServer:
         """Serve in a background thread; return self."""
