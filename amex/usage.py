@@ -42,6 +42,8 @@ def describe(path: Path) -> str:
         if depth == 0 and char in ".:;" and (i + 1 == len(text) or text[i + 1] == " "):
             text = text[:i]
             break
+    if len(text) > 90:  # too long: without its parenthetical remarks
+        text = re.sub(r"\s*\([^()]*\)", "", text)
     return text if len(text) <= 90 else text[:87].rsplit(" ", 1)[0] + "..."
 
 
@@ -96,7 +98,11 @@ def help_text(conf_dir: Path, prog: str = "amex-run") -> str:
             text = (doc[0] if doc else "") + f" (plugin: {METHODS[name].__module__})"
         methods.append((name, text))
     robots = [(p.stem, describe(p)) for p in sorted((conf_dir / "robot").glob("*.yaml"))]
-    experiments = [(p.stem, describe(p)) for p in sorted((conf_dir / "experiment").glob("*.yaml"))]
+    experiment_dir = conf_dir / "experiment"
+    experiments = [
+        (p.relative_to(experiment_dir).with_suffix("").as_posix(), describe(p))
+        for p in sorted(experiment_dir.rglob("*.yaml"))
+    ]
     config_yaml = conf_dir / "config.yaml"
     options, groups = _options(config_yaml)
     composed = yaml.safe_load(config_yaml.read_text())

@@ -152,8 +152,11 @@ def test_help_lists_tasks_methods_robots_experiments_options_and_outputs(tmp_pat
         assert section in out
     methods = out.split("methods (")[1].split("\n\n")[0]
     assert "schema_" not in methods and "  dmp_ps  " in methods
-    for yaml_file in [*conf.glob("robot/*.yaml"), *conf.glob("experiment/*.yaml")]:
+    for yaml_file in conf.glob("robot/*.yaml"):
         assert f"  {yaml_file.stem}  " in out  # discovered from the files
+    for yaml_file in (conf / "experiment").rglob("*.yaml"):
+        name = yaml_file.relative_to(conf / "experiment").with_suffix("").as_posix()
+        assert f"  {name}  " in out
     assert "outer_hz=100.0" in out and "[Hz]" in out and "max_time=10.0" in out
     assert "episodes.csv" in out and "hydra.run.dir=DIR" in out
     assert not list(tmp_path.iterdir())  # no run directory
