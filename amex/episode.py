@@ -38,6 +38,7 @@ from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult
 from amex.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.robot import RobotModel
 from amex.scenario import Scenario
+from amex.schema import check_tree
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,7 @@ class LoopConfig:
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` on rates or limits the loop cannot run with."""
+        check_tree(self)  # finite, >= 0
         if not self.outer_hz > 0:
             raise ConfigError.invalid("outer_hz", self.outer_hz, "a rate > 0 [Hz]")
         if not self.inner_hz > 0:

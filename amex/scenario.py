@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from amex.errors import ConfigError
+from amex.schema import SIGNED
 
 TASKS = (0, 1, 2, 3, 4)
 
@@ -54,7 +55,7 @@ class ScenarioConfig:
     box_grid: list[int] = field(default_factory=lambda: [3, 5, 10])
     goal_speed_std: float = 0.1
     goal_motion_window: float = 0.7
-    plane_offset: float = 0.35
+    plane_offset: float = field(default=0.35, metadata=SIGNED)  # either side of the box centre
     plane_grid: list[int] = field(default_factory=lambda: [15, 10])
     obstacle_radius: float = 0.1
     obstacle_speed_std: float = 0.1

@@ -2,24 +2,33 @@
 
 The cache key is a SHA-256 of everything the plan depends on: the URDF's bytes, the start
 configuration, the goal, the plan settings and :data:`PLAN_FORMAT` (bumped when the optimizer's
-mathematics change). Files are written atomically, so parallel workers can share the cache.
+mathematics change). Files are written atomically (:func:`amex.durable.replace_durably`), so
+parallel workers can share the cache. A cached file is used only if it holds a finite plan of the
+configured shape, sample period and start; a truncated, garbled or mismatched file is solved
+again and replaced. A cache that cannot be written (read-only, or its path is a file) costs one
+warning and a solve per run, never the run.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
+import logging
+import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
+from amex.durable import WriteError, replace_durably
 from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
 
 PLAN_FORMAT = 1
+
+log = logging.getLogger(__name__)
 
 
 def cache_dir() -> Path:
@@ -67,6 +76,49 @@ def solve_reference(
     return ReferencePlan(q=solution.q, y=y, dt=config.dt)
 
 
+def load_cached(path: Path, robot: RobotModel, config: PlanConfig) -> ReferencePlan | None:
+    """The plan stored at ``path`` if it is readable and fits ``config`` and ``robot``, else None.
+
+    Fits: ``q`` of shape (steps + 1, nv) starting at ``robot.q0``, ``y`` of shape (steps + 1, 6),
+    the configured ``dt`` (so also the duration), every value finite.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            q = np.array(f["q"], dtype=float)
+            y = np.array(f["y"], dtype=float)
+            dt = float(f["dt"])
+    except Exception:  # missing, truncated, garbled, not an npz: numpy raises many types
+        return None
+    n = config.steps + 1
+    fits = (
+        q.shape == (n, robot.nv)
+        and y.shape == (n, 6)
+        and math.isclose(dt, config.dt, rel_tol=1e-12)
+        and bool(np.isfinite(q).all() and np.isfinite(y).all())
+        and np.allclose(q[0], robot.q0, rtol=0.0, atol=1e-9)
+    )
+    return ReferencePlan(q=q, y=y, dt=config.dt) if fits else None
+
+
+def store(path: Path, plan: ReferencePlan) -> bool:
+    """Write ``plan`` to ``path`` atomically; False (and one warning) if the cache is unwritable."""
+    buffer = io.BytesIO()
+    np.savez(buffer, q=plan.q, y=plan.y, dt=plan.dt)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        replace_durably(path, buffer.getvalue())
+    except (OSError, WriteError) as e:
+        reason = e.reason if isinstance(e, WriteError) else (e.strerror or str(e))
+        log.warning(
+            "plan cache %s not written (%s): the plan is solved again by every run; "
+            "set AMEX_CACHE_DIR to a writable directory",
+            path.parent,
+            reason,
+        )
+        return False
+    return True
+
+
 def reference_plan(
     robot: RobotModel,
     config: PlanConfig,
@@ -74,19 +126,11 @@ def reference_plan(
     goal_axis: np.ndarray,
     directory: Path | None = None,
 ) -> ReferencePlan:
-    """The reference plan, from the disk cache when present, else solved and stored."""
+    """The reference plan: from the disk cache when a fitting one is there, else solved, stored."""
     directory = cache_dir() / "plans" if directory is None else directory
     path = directory / f"plan_{plan_key(robot, config, goal_pos, goal_axis)}.npz"
-    if path.exists():
-        try:
-            with np.load(path) as f:
-                return ReferencePlan(q=f["q"], y=f["y"], dt=float(f["dt"]))
-        except (OSError, ValueError, KeyError):
-            pass  # unreadable (e.g. truncated by a crash): recompute and overwrite
-    plan = solve_reference(robot, config, goal_pos, goal_axis)
-    directory.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix=".npz")
-    with os.fdopen(fd, "wb") as f:
-        np.savez(f, q=plan.q, y=plan.y, dt=plan.dt)
-    os.replace(tmp, path)
+    plan = load_cached(path, robot, config)
+    if plan is None:
+        plan = solve_reference(robot, config, goal_pos, goal_axis)
+        store(path, plan)
     return plan
