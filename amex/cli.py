@@ -270,20 +270,24 @@ def _task(cfg: Any) -> None:
     episodes = config.episodes
     quiet = hydra_config.mode == RunMode.MULTIRUN  # the sweep has one bar (SweepProgress)
     _OUTPUT.setdefault("dir", run_dir)
-    with (
-        job_guard(run_dir, quiet),
-        logging_redirect_tqdm(),
-        tqdm(total=episodes, desc=label, unit="ep", disable=quiet) as bar,
-    ):
-        successes = 0
+    if quiet:  # no tqdm in sweep workers: its lock is a semaphore, which a killed worker leaks
+        with job_guard(run_dir, multirun=True):
+            summary = run(config, run_dir)
+    else:
+        with (
+            job_guard(run_dir, multirun=False),
+            logging_redirect_tqdm(),
+            tqdm(total=episodes, desc=label, unit="ep") as bar,
+        ):
+            successes = 0
 
-        def progress(env: int, result: Any) -> None:
-            nonlocal successes
-            successes += int(result.success)
-            bar.set_postfix(success=f"{successes}/{env + 1}")
-            bar.update(1)
+            def progress(env: int, result: Any) -> None:
+                nonlocal successes
+                successes += int(result.success)
+                bar.set_postfix(success=f"{successes}/{env + 1}")
+                bar.update(1)
 
-        summary = run(config, run_dir, progress)
+            summary = run(config, run_dir, progress)
     s = summary["success"]["mean"]
     t = summary["final_time"]
     print(
@@ -301,6 +305,12 @@ def _closing_line(error: BaseException) -> tuple[str, int]:
 
     directory = _OUTPUT.get("dir")
     kept = f"{count_rows(directory)} episodes kept in {directory}" if directory else ""
+    if isinstance(error, OSError):  # e.g. Hydra writing .hydra/ on a full disk
+        what = f"cannot write {error.filename}" if error.filename else "a write failed"
+        error = JobFailed(f"{what}: {error.strerror or error}", True)
+    elif isinstance(error, Exception):  # anything else Hydra or a job raised
+        first = (str(error).strip().splitlines() or [""])[0]
+        error = JobFailed(f"{type(error).__name__}: {first} (AMEX_DEBUG=1 shows the traceback)")
     if isinstance(error, JobFailed):
         if not error.resumable:
             return f"{PROG}: error: {error.message}", 2
@@ -331,10 +341,11 @@ def run_main() -> None:
     _register_schemas()
     main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(_task)
     os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop when this process is gone
+    os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors instead of printing them
     try:
         with signals_raise():
             main()
-    except (JobFailed, KeyboardInterrupt) as e:
+    except (JobFailed, KeyboardInterrupt, Exception) as e:
         if debug:
             raise
         for callback in _OUTPUT_CALLBACKS:  # stop the sweep's progress bar before the last line
