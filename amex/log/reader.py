@@ -1,11 +1,17 @@
 """Reading episode logs back, tolerantly: intact files through the index, cut files chunk by chunk.
 
-:func:`read_log` first tries the ``mcap`` package's indexed (seeking) reader. If the summary
-section cannot be read, because the writer was killed (SIGKILL, power loss) and the file ends
-mid-chunk without footer, it streams the file record by record
-(:class:`mcap.stream_reader.StreamReader`, chunk CRCs checked) and keeps every record before the
-first incomplete or damaged one: all completed chunks, i.e. all but the last ~64 KiB. Short reads
-raise instead of being passed on, so a cut record is never returned as a shorter one.
+:func:`read_log` first tries the ``mcap`` package's indexed (seeking) reader. If that fails, it
+streams the file record by record (:class:`mcap.stream_reader.StreamReader`), checking every
+chunk's CRC on its own, and tells two cases apart:
+
+* **truncated**: the file does not end with the MCAP magic, because the writer was killed
+  (SIGKILL, power loss) mid-chunk: every record before the cut is kept, i.e. all but the last
+  ~64 KiB;
+* **corrupt**: the file is complete but damaged inside (flipped bytes): a damaged chunk is skipped
+  and reading goes on with the next one, so only that chunk's messages are lost; the summary's
+  message count, when readable, says how many.
+
+Short reads raise instead of being passed on, so a cut record is never returned as a shorter one.
 :func:`recover` writes what was read as a new, indexed MCAP file.
 
 JSON channels are decoded when read; protobuf channels (the Foxglove schemas) stay bytes until
@@ -26,8 +32,8 @@ from typing import IO, Any, NamedTuple
 
 import numpy as np
 from mcap.reader import SeekingReader
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Chunk, Message, Metadata, Schema, Statistics
+from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from amex.errors import AmexError
@@ -54,6 +60,10 @@ class NotMcapError(LogError):
 
 class TruncatedLogError(LogError):
     """The file was cut before any message could be recovered."""
+
+
+class CorruptLogError(LogError):
+    """The file is complete but damaged so that no message can be read."""
 
 
 class LogExistsError(LogError):
@@ -87,7 +97,8 @@ class LogData:
         messages: per topic, the messages in log-time order.
         metadata: MCAP metadata records by name; values parsed from JSON where they are JSON.
         truncated: True if the file was cut (read by streaming; see :attr:`note`).
-        note: why the file counts as truncated, and where it was cut.
+        note: why the file counts as truncated or corrupt, and what was lost.
+        corrupt: True if damaged chunks inside a complete file were skipped (see :attr:`note`).
     """
 
     path: Path
@@ -97,6 +108,7 @@ class LogData:
     metadata: dict[str, dict[str, Any]]
     truncated: bool = False
     note: str = ""
+    corrupt: bool = False
     _raw: _RawLog | None = field(default=None, repr=False, compare=False)
     _decoded: dict[str, list[LogMessage]] = field(default_factory=dict, repr=False, compare=False)
 
@@ -104,6 +116,17 @@ class LogData:
     def message_count(self) -> int:
         """Number of messages read (recovered, for a truncated file)."""
         return sum(c.message_count for c in self.channels.values())
+
+    @property
+    def damage(self) -> str:
+        """``""`` for an intact file, else ``"truncated"``, ``"corrupt"`` or both."""
+        flags = (("truncated", self.truncated), ("corrupt", self.corrupt))
+        return " and ".join(word for word, flag in flags if flag)
+
+    @property
+    def is_amex_log(self) -> bool:
+        """Whether amex wrote it (it has the ``episode`` metadata record or an amex channel)."""
+        return "episode" in self.metadata or "/tcp" in self.channels
 
     @property
     def start_time(self) -> float:
@@ -284,24 +307,50 @@ def _read_indexed(f: IO[bytes]) -> _RawLog | None:
         return None
 
 
-def _read_stream(f: IO[bytes]) -> tuple[_RawLog, str]:
-    """Every record up to the first incomplete or damaged one, and why reading stopped there."""
+class _Stream(NamedTuple):
+    """What streaming read besides the records: where and why it stopped, what it skipped."""
+
+    stopped: str  # why the top-level stream broke ("" if it reached the footer)
+    damaged: int  # chunks skipped because their content was damaged
+    expected: int | None  # the summary's message count, if its statistics record was read
+
+
+def _keep(raw: _RawLog, record: Any) -> None:
+    if isinstance(record, Schema):
+        raw.schemas[record.id] = record
+    elif isinstance(record, Channel):
+        raw.channels[record.id] = record
+    elif isinstance(record, Message):
+        if record.channel_id in raw.channels:
+            raw.messages.append(record)
+    elif isinstance(record, Metadata):
+        raw.metadata.append(record)
+
+
+def _read_stream(f: IO[bytes]) -> tuple[_RawLog, _Stream]:
+    """Every readable record: damaged chunks skipped, reading stops where the stream breaks."""
     raw = _RawLog()
-    reader = StreamReader(_ExactReader(f), validate_crcs=True)  # type: ignore[arg-type]
+    damaged = 0
+    expected = None
+    f.seek(len(MCAP_MAGIC))
+    reader = StreamReader(_ExactReader(f), skip_magic=True, emit_chunks=True)  # type: ignore[arg-type]
     try:
         for record in reader.records:
-            if isinstance(record, Schema):
-                raw.schemas[record.id] = record
-            elif isinstance(record, Channel):
-                raw.channels[record.id] = record
-            elif isinstance(record, Message):
-                if record.channel_id in raw.channels:
-                    raw.messages.append(record)
-            elif isinstance(record, Metadata):
-                raw.metadata.append(record)
-    except Exception as e:  # a cut or corrupt record ends the readable part
-        return raw, _reason(e)
-    return raw, ""
+            if isinstance(record, Chunk):
+                try:
+                    inner = list(breakup_chunk(record, validate_crc=True))
+                except Exception:  # a CRC mismatch or undecompressible data: skip this chunk
+                    damaged += 1
+                    continue
+                for r in inner:
+                    _keep(raw, r)
+            elif isinstance(record, Statistics):
+                expected = record.message_count
+            else:
+                _keep(raw, record)
+    except Exception as e:  # a cut or unreadable record ends the readable part
+        return raw, _Stream(_reason(e), damaged, expected)
+    return raw, _Stream("", damaged, expected)
 
 
 def _reason(error: Exception) -> str:
@@ -316,7 +365,9 @@ def _reason(error: Exception) -> str:
     return f"{type(error).__name__}: {text}"[:200]
 
 
-def _decode(raw: _RawLog, path: Path, size: int, truncated: bool, note: str) -> LogData:
+def _decode(
+    raw: _RawLog, path: Path, size: int, truncated: bool, note: str, corrupt: bool = False
+) -> LogData:
     raw.messages.sort(key=lambda m: (m.log_time, m.channel_id, m.sequence))
     by_topic: dict[str, list[LogMessage]] = {c.topic: [] for c in raw.channels.values()}
     for message in raw.messages:
@@ -340,7 +391,7 @@ def _decode(raw: _RawLog, path: Path, size: int, truncated: bool, note: str) -> 
         metadata.setdefault(record.name, {}).update(
             {k: _parse(v) for k, v in record.metadata.items()}
         )
-    return LogData(path, size, channels, by_topic, metadata, truncated, note, raw)
+    return LogData(path, size, channels, by_topic, metadata, truncated, note, corrupt, raw)
 
 
 def _parse(text: str) -> Any:
@@ -364,17 +415,31 @@ def read_log(path: Path | str) -> LogData:
             raw = _read_indexed(f)
             if raw is not None:
                 return _decode(raw, path, size, False, "")
-            f.seek(0)
-            raw, reason = _read_stream(f)
+            f.seek(max(size - len(MCAP_MAGIC), 0))
+            complete = f.read(len(MCAP_MAGIC)) == MCAP_MAGIC and size > 2 * len(MCAP_MAGIC)
+            raw, stream = _read_stream(f)
     except OSError as e:
         raise LogError(f"cannot read {path}: {e.strerror or e}") from e
-    note = f"cut at {size} bytes, in {reason}" if reason else "no summary section"
+    truncated = bool(stream.stopped) and not complete
+    notes = []
+    if truncated:
+        notes.append(f"cut at {size} bytes, in {stream.stopped}")
+    if stream.damaged:
+        notes.append(f"{stream.damaged} damaged chunk{'s' * (stream.damaged > 1)} skipped")
+    if stream.stopped and complete:
+        notes.append(f"unreadable from {stream.stopped} on")
+    if stream.expected is not None and (stream.damaged or stream.stopped):
+        notes.append(f"{len(raw.messages)} of {stream.expected} messages read")
+    corrupt = bool(stream.damaged) or (bool(stream.stopped) and complete)
+    note = "; ".join(notes) or "no summary section"
     if not raw.messages:
+        if corrupt and not truncated:
+            raise CorruptLogError(f"log file is corrupt ({note}), nothing to recover: {path}")
         raise TruncatedLogError(
             f"log file is truncated before its first complete chunk ({size} bytes), "
             f"nothing to recover: {path}"
         )
-    return _decode(raw, path, size, bool(reason), note)
+    return _decode(raw, path, size, truncated, note, corrupt)
 
 
 def recover(src: Path | str, dst: Path | str) -> LogData:
@@ -417,6 +482,7 @@ def recover(src: Path | str, dst: Path | str) -> LogData:
                     "source": json.dumps(str(src)),
                     "source_bytes": json.dumps(data.size),
                     "truncated": json.dumps(data.truncated),
+                    "corrupt": json.dumps(data.corrupt),
                     "messages": json.dumps(len(raw.messages)),
                     "note": json.dumps(data.note),
                 },
