@@ -158,22 +158,16 @@ def _validate_command_line(argv: list[str]) -> None:
             continue
         overrides.append(arg)
     multirun = "-m" in argv or "--multirun" in argv
-    run_dir = next((o.split("=", 1)[1] for o in overrides if o.startswith("hydra.run.dir=")), "")
-    combos = _sweep_combinations(overrides)
-    for combo in combos:
+    parsed = OverridesParser.create().parse_overrides(overrides)
+    hydra_overrides = [o.input_line for o in parsed if o.is_hydra_override() and o.input_line]
+    for combo in _sweep_combinations(overrides):
         try:
             config = load_config(combo)
             preflight(config)
-        except ConfigError as e:
+            job_dir = check_launch(combo, hydra_overrides, multirun)
+        except (ConfigError, LaunchError) as e:
             raise UsageError(str(e)) from e
-        if run_dir and not multirun:
-            _check_resumable(Path(run_dir), config)
-    parsed = OverridesParser.create().parse_overrides(overrides)
-    hydra_overrides = [o.input_line for o in parsed if o.is_hydra_override() and o.input_line]
-    try:
-        check_launch(combos[0], hydra_overrides, multirun)
-    except LaunchError as e:
-        raise UsageError(str(e)) from e
+        _check_resumable(job_dir, config)
 
 
 def _check_resumable(run_dir: Path, config: Any) -> None:

@@ -107,7 +107,10 @@ def _check_joblib(launcher: Any) -> None:
 
 
 def check_output_dir(key: str, path: Path) -> None:
-    """Refuse an output directory that is a file, cannot be created or written, or is locked."""
+    """Refuse an output directory that is a file, cannot be created or written, or is locked.
+
+    Locked: ``path`` itself or, for a sweep directory, one of its job directories.
+    """
     probe = path
     while not probe.exists():
         if probe.parent == probe:
@@ -130,8 +133,11 @@ def check_output_dir(key: str, path: Path) -> None:
             )
 
 
-def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: bool) -> None:
-    """Compose the Hydra config of the first job and check launcher and output directory."""
+def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: bool) -> Path:
+    """Compose a job's Hydra config, check its launcher and output directory; return the latter.
+
+    For a sweep (``multirun``) that is ``hydra.sweep.dir / hydra.sweep.subdir``.
+    """
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.utils import setup_globals
@@ -150,7 +156,9 @@ def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: boo
             )
         hydra_cfg: Any = OmegaConf.to_container(cfg.hydra, resolve=False)
         key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
-        directory = OmegaConf.select(cfg, key)
+        directory = Path(str(OmegaConf.select(cfg, key)))
+        subdir = str(OmegaConf.select(cfg, "hydra.sweep.subdir")) if multirun else ""
+        job = directory / subdir
     except Exception as e:  # Hydra and OmegaConf raise many types for bad input
         raise LaunchError(explain(e, overrides + hydra_overrides)) from e
     finally:
@@ -158,7 +166,8 @@ def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: boo
     launcher = hydra_cfg.get("launcher") or {}
     if multirun and str(launcher.get("_target_", "")).endswith("JoblibLauncher"):
         _check_joblib(launcher)
-    check_output_dir(key, Path(str(directory)))
+    check_output_dir(key, directory)
+    return job
 
 
 @contextlib.contextmanager

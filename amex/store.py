@@ -179,7 +179,7 @@ class EpisodeStore:
         if foreign:
             raise StoreError(
                 f"{path} holds episodes of another configuration (hash {sorted(foreign)[0]}, "
-                f"this run {config_hash}); choose another directory with hydra.run.dir=..."
+                f"this run {config_hash}); choose another hydra.run.dir (hydra.sweep.dir for -m)"
             )
         return rows
 

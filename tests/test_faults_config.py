@@ -160,3 +160,18 @@ def test_preflight_builds_the_method_and_names_its_bad_parameter(method, param, 
     validate(config)  # the schema alone cannot know these
     with pytest.raises(ConfigError, match=rf"invalid method.{param}=.*; valid: "):
         preflight(config)
+
+
+def test_a_sweep_job_directory_of_another_configuration_is_refused_untouched(tmp_path, monkeypatch):
+    from amex.runner import run
+
+    sweep = tmp_path / "sweep"
+    config = _config("track")
+    config.task, config.episodes, config.max_time, config.seed = 1, 1, 0.2, 1
+    run(config, sweep / "task1_track_seed0")  # recorded with seed 1 where seed 0 belongs
+    before = {p: p.read_bytes() for p in sweep.rglob("*") if p.is_file()}
+    monkeypatch.chdir(tmp_path)
+    argv = ["-m", "task=0,1", "method=track", "episodes=1", f"hydra.sweep.dir={sweep}"]
+    with pytest.raises(UsageError, match="another configuration"):
+        _validate_command_line(argv)
+    assert {p: p.read_bytes() for p in sweep.rglob("*") if p.is_file()} == before

@@ -163,3 +163,17 @@ def test_the_lock_is_refused_while_held_and_free_after_its_holder_is_killed(tmp_
     assert RunLock.holder(tmp_path) is None
     run(config, tmp_path)
     assert len(read_rows(tmp_path / "episodes.csv")) == 1
+
+
+def test_ctrl_c_on_a_single_run_says_how_many_episodes_were_kept(tmp_path):
+    out = tmp_path / "run"
+    proc = _start(
+        ["task=3", "method=amex", "episodes=40", "max_time=6", f"hydra.run.dir={out}"], tmp_path
+    )
+    _wait_for_rows(out, 2, proc)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGINT
+    _closing_line_is_clean(stderr, "SIGINT")
+    kept = len(read_rows(out / "episodes.csv"))
+    assert f"{kept} episodes kept in {out}" in stderr
