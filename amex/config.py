@@ -17,25 +17,14 @@ from amex.errors import ConfigError
 from amex.methods import METHODS, MethodConfig
 from amex.perception import PerceptionConfig, PredictionConfig
 from amex.plan.reference import PlanConfig
-from amex.robot import PANDA_Q0, ROBOTS
+from amex.robot import RobotConfig, load_robot
+from amex.scaling import scale_power, scale_value, scaled, to_scene_units
 from amex.scenario import TASKS, ScenarioConfig
 from amex.schema import check_tree
 
 LOG_LEVELS = ("none", "full")
 MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
-
-
-@dataclass
-class RobotConfig:
-    """The arm and its start configuration.
-
-    Attributes:
-        name: robot model (only ``panda``).
-        q0: start configuration, the Panda's neutral pose [rad].
-    """
-
-    name: str = "panda"
-    q0: list[float] = field(default_factory=lambda: list(PANDA_Q0))
+SIMULATIONS = ("dynamic", "kinematic")
 
 
 @dataclass
@@ -46,14 +35,14 @@ class ControllerConfig:
         col: collision task gains (original: Kp 2500, Kd 100).
         joint: joint-target task gains, used by CR's joint commands (original: 100, 100).
         damping: joint damping task (original: Kd 10 at precision 0.1; we weight it 0.01).
-        margin: collision margin (original 0.1 m), multiplied by ``scenario.scale`` [m].
+        margin: collision margin (original 0.1 m; scene units, :mod:`amex.scaling`) [m].
         reg: regularizer H = reg * I of Eq. 4 [-].
     """
 
     col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
     joint: PD = field(default_factory=lambda: PD(100.0, 100.0, 1.0))
     damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
-    margin: float = 0.1
+    margin: float = field(default=0.1, metadata=scaled(1))
     reg: float = 1e-6
 
 
@@ -70,8 +59,11 @@ class RunConfig:
         inner_hz: controller and simulation rate [Hz], an integer multiple of ``outer_hz``.
         max_time: episode time limit [s].
         success_radius: final TCP-goal distance counted as success [m] (absolute, as the paper).
-        stop_radius: the episode stops within this distance of the goal; the paper's 0.03 m on
-            its 5x larger scene, multiplied by ``scenario.scale`` [m].
+        stop_radius: the episode stops within this distance of the goal; the paper's 0.03 m
+            (scene units, :mod:`amex.scaling`) [m].
+        sim: ``dynamic`` (MuJoCo integrates the torques of the inner controller) or
+            ``kinematic`` (the controller's joint accelerations are integrated directly, as the
+            authors' code did; :mod:`amex.episode`).
         log: ``none`` or ``full`` (one MCAP file per episode).
         perception: goal noise and latency (default exact).
         prediction: constant-velocity Kalman prediction of the goal (default off).
@@ -93,30 +85,38 @@ class RunConfig:
     inner_hz: float = 1000.0
     max_time: float = 10.0
     success_radius: float = 0.03
-    stop_radius: float = 0.03
+    stop_radius: float = field(default=0.03, metadata=scaled(1))
+    sim: str = "dynamic"
     log: str = "none"
 
     @property
     def loop(self) -> LoopConfig:
         """The episode loop's settings."""
+        scale = float(self.scenario.scale)
+        stop = scale_value(self.stop_radius, scale, scale_power(RunConfig, "stop_radius"))
         return LoopConfig(
             outer_hz=float(self.outer_hz),
             inner_hz=float(self.inner_hz),
             max_time=float(self.max_time),
             success_radius=float(self.success_radius),
-            stop_radius=float(self.stop_radius) * float(self.scenario.scale),
+            stop_radius=stop,
+            kinematic=self.sim == "kinematic",
         )
+
+    def method_config(self) -> Any:
+        """The method's configuration in the scene's units (:mod:`amex.scaling`)."""
+        return to_scene_units(self.method, float(self.scenario.scale))
 
     def gains(self) -> OSCGains:
         """Inner-controller gains: the method's task gains plus the shared terms."""
-        c = self.controller
+        c = to_scene_units(self.controller, float(self.scenario.scale))
         return OSCGains(
             pos=self.method.pos,
             dir=self.method.dir,
             col=c.col,
             joint=c.joint,
             damping=c.damping,
-            margin=c.margin * self.scenario.scale,
+            margin=c.margin,
             reg=c.reg,
         )
 
@@ -139,9 +139,20 @@ def validate(config: RunConfig) -> None:
         raise ConfigError.invalid("episodes", config.episodes, "an integer >= 1")
     if config.log not in LOG_LEVELS:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
-    if config.robot.name not in ROBOTS:
-        raise ConfigError.invalid("robot", config.robot.name, ROBOTS)
+    if config.sim not in SIMULATIONS:
+        raise ConfigError.invalid("sim", config.sim, SIMULATIONS)
+    if config.sim == "kinematic" and config.mismatch != type(config.mismatch)():
+        raise ConfigError(
+            f"invalid mismatch={config.mismatch} with sim=kinematic; "
+            "valid: the defaults (a kinematic simulation has no dynamics to mismatch)"
+        )
     config.loop.validate()
+    if config.loop.stop_radius > config.success_radius:
+        raise ConfigError.invalid(
+            "stop_radius", config.stop_radius,
+            f"at most success_radius = {config.success_radius} m once x scenario.scale",
+        )
+    load_robot(config.robot)  # a description the loop cannot use is a configuration error
     plan = config.plan
     if not (plan.dt > 0 and plan.duration > 0):
         raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")

@@ -5,6 +5,16 @@ returns a :class:`~amex.control.osc.Command`. Inner loop (``inner_hz``, 1 kHz): 
 operational-space controller turns the held command into torques with Pinocchio's model, and MuJoCo
 integrates one step. The simulator never knows which method runs; the method never touches MuJoCo.
 
+Simulation. ``dynamic`` (default): the torque ``tau = M q_ddot* + h`` (clipped to the limits) is
+applied in MuJoCo, which integrates one step (semi-implicit Euler). ``kinematic``: the controller's
+``q_ddot*`` is integrated directly, ``q += dt q_dot; q_dot += dt q_ddot*`` (explicit Euler, as the
+authors' harness did: its physics call was commented out), so masses, torque limits and model
+mismatch play no role and an episode costs no inverse dynamics and no MuJoCo step. MuJoCo still
+places the arm's geoms at every step of a scene with obstacles and detects contacts
+(``mj_kinematics`` + ``mj_collision``), so ``collided`` means the same in both; the arm passes
+through what it touches. ``sum_sq_acc`` sums MuJoCo's ``qacc`` (dynamic) or ``q_ddot*``
+(kinematic).
+
 Termination: the episode stops when the TCP is within ``stop_radius`` of the current goal (checked
 at every inner step, before the command is applied), else at ``max_time``. Success is judged on the
 final distance (``success_radius``, the paper's 0.03 m). Non-finite or diverging states, and
@@ -54,6 +64,8 @@ class LoopConfig:
         stop_radius: TCP-goal distance at which the episode stops [m].
         speed_limit_factor: the simulation counts as diverged when a joint moves faster than this
             many times its rated speed [-].
+        kinematic: integrate the controller's accelerations instead of simulating the dynamics
+            (module notes).
     """
 
     outer_hz: float = 100.0
@@ -62,6 +74,7 @@ class LoopConfig:
     success_radius: float = 0.03
     stop_radius: float = 0.006
     speed_limit_factor: float = 5.0
+    kinematic: bool = False
 
     @property
     def substeps(self) -> int:
@@ -222,6 +235,9 @@ def run_episode(
     goal = scenario.goal_at(0.0)
     gx, gy, gz = goal.tolist()
     goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
+    kinematic = loop.kinematic
+    detect_contacts = kinematic and scenario.n_obstacles > 0
+    no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
     compute_times: list[float] = []
     sum_sq_acc = 0.0
     collided = False
@@ -270,10 +286,20 @@ def run_episode(
                 command = method.step(obs)
                 compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
                 _check_command(command)
-            tau = osc.torque(state, command)
-            mjd.qfrc_applied[:] = tau
-            mujoco.mj_step(mjm, mjd)
-            qacc = mjd.qacc
+            if kinematic:
+                qacc = osc.accelerations(state, command)
+                tau = no_torque
+                mjd.qpos += dt * mjd.qvel
+                mjd.qvel += dt * qacc
+                mjd.time += dt
+                if detect_contacts:
+                    mujoco.mj_kinematics(mjm, mjd)
+                    mujoco.mj_collision(mjm, mjd)
+            else:
+                tau = osc.torque(state, command)
+                mjd.qfrc_applied[:] = tau
+                mujoco.mj_step(mjm, mjd)
+                qacc = mjd.qacc
             sum_sq_acc += float(qacc @ qacc)
             if mjd.ncon:
                 collided = True

@@ -28,10 +28,10 @@ from amex.errors import ConfigError
 from amex.methods import get_method
 from amex.metrics import EpisodeResult, summarize
 from amex.plan.cache import reference_plan
-from amex.plan.problem import TrajectoryCosts
+from amex.plan.problem import TrajectoryCosts, joint_metric
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
-from amex.scenario import make_scenario
+from amex.scenario import make_scenario, reference_goal
 from amex.schema import field_names
 from amex.store import EpisodeStore, config_hash, scene_hash
 
@@ -49,10 +49,6 @@ class RunContext:
     plan: ReferencePlan
 
 
-def _robot(config: RunConfig) -> RobotModel:
-    return load_robot(config.robot.name, tuple(config.robot.q0))
-
-
 def stand_in_plan(robot: RobotModel, config: RunConfig) -> ReferencePlan:
     """A plan of the reference plan's shape, without solving: at rest in q0, y straight to the goal.
 
@@ -60,10 +56,13 @@ def stand_in_plan(robot: RobotModel, config: RunConfig) -> ReferencePlan:
     """
     n = config.plan.steps + 1
     y0 = robot.task_position(robot.q0)
-    goal = np.concatenate([config.scenario.reference_goal, config.scenario.goal_axis])
+    goal_pos = reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation)
+    goal = np.concatenate([goal_pos, config.scenario.goal_axis])
     u = np.linspace(0.0, 1.0, n)[:, None]
     y = (1.0 - u) * y0 + u * goal
-    return ReferencePlan(q=np.repeat(robot.q0[None], n, axis=0), y=y, dt=config.plan.dt)
+    metric = joint_metric(config.plan.metric, robot.nv)
+    q = np.repeat(robot.q0[None], n, axis=0)
+    return ReferencePlan(q=q, y=y, dt=config.plan.dt, metric=metric)
 
 
 def preflight(config: RunConfig) -> None:
@@ -74,12 +73,13 @@ def preflight(config: RunConfig) -> None:
     directory exists, instead of in the first episode.
     """
     validate(config)
-    robot = _robot(config)
-    TrajectoryCosts(**config.plan.cost_weights(), collision=0.0)
+    robot = load_robot(config.robot)
+    metric = joint_metric(config.plan.metric, robot.nv)
+    TrajectoryCosts(**config.plan.cost_weights(), collision=0.0, metric=metric)
     name = config.method.name
     try:
         get_method(name).from_plan(
-            stand_in_plan(robot, config), config.method, 1.0 / config.outer_hz, robot
+            stand_in_plan(robot, config), config.method_config(), 1.0 / config.outer_hz, robot
         )
     except ConfigError as e:
         message = str(e)
@@ -93,11 +93,11 @@ def preflight(config: RunConfig) -> None:
 
 def prepare(config: RunConfig) -> RunContext:
     """Load the robot and get the reference plan (solved, or from the disk cache)."""
-    robot = _robot(config)
+    robot = load_robot(config.robot)
     plan = reference_plan(
         robot,
         config.plan,
-        np.asarray(config.scenario.reference_goal, dtype=float),
+        reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation),
         np.asarray(config.scenario.goal_axis, dtype=float),
     )
     return RunContext(robot, plan)
@@ -111,7 +111,9 @@ def run_one(
     With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
     """
     method_cls = get_method(config.method.name)
-    method = method_cls.from_plan(context.plan, config.method, 1.0 / config.outer_hz, context.robot)
+    method = method_cls.from_plan(
+        context.plan, config.method_config(), 1.0 / config.outer_hz, context.robot
+    )
     scenario = make_scenario(
         config.scenario,
         config.task,

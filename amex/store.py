@@ -4,7 +4,9 @@ Every row carries two hashes of the configuration that produced it:
 
 * ``config_hash``: everything that determines the episode (task, method and its parameters, scenes,
   plan, controller, rates, seed, code version), not ``episodes`` or ``log``. A run resumes by
-  skipping the environments already recorded under the same hash. An option added later is left
+  skipping the environments already recorded under the same hash. The method's parameters are
+  hashed in the scene's units (:mod:`amex.scaling`) and the robot's start pose as resolved from
+  the catalogue, so a value written another way hashes the same. An option added later is left
   out while it has the value that reproduces the earlier behaviour (``_ADDED_OPTIONS``).
 * ``scene_hash``: the same without task and method, so rows of different methods with equal scene
   hashes ran on identical environments (the condition for paired comparisons).
@@ -37,34 +39,69 @@ _NOT_RESULTS = ("episodes", "log")
 # Options added after runs were recorded, with the value that reproduces the behaviour before
 # them: at that value they are left out of the hashes, so adding an option does not orphan
 # existing runs (they resume and tabulate as before); any other value is hashed as usual.
-_ADDED_OPTIONS: dict[tuple[str, str], object] = {("perception", "preview"): 0.0}
+_ADDED_OPTIONS: dict[tuple[str, ...], object] = {
+    ("perception", "preview"): 0.0,
+    ("sim",): "dynamic",
+    ("plan", "metric"): "identity",
+    ("scenario", "reference_offset"): [0.385, 1.147, -0.131],
+    ("robot", "urdf"): "",
+    ("robot", "joints"): [],
+    ("robot", "tcp_frame"): "",
+    ("robot", "package_dirs"): [],
+    ("robot", "torque_limit"): [],
+    ("robot", "velocity_limit"): [],
+}
 
 
 class StoreError(AmexError):
     """An episodes.csv cannot be used; the message names the file."""
 
 
+def _without_neutral(spec: dict[str, Any]) -> dict[str, Any]:
+    """``spec`` without the added options that have their neutral value (``_ADDED_OPTIONS``)."""
+    spec = dict(spec)
+    for path, neutral in _ADDED_OPTIONS.items():
+        *sections, key = path
+        node = spec
+        for section in sections:
+            sub = node.get(section)
+            if not isinstance(sub, dict):
+                break
+            node[section] = node = dict(sub)
+        else:
+            if key in node and node[key] == neutral:
+                del node[key]
+    return spec
+
+
 def _digest(spec: dict[str, Any]) -> str:
-    for (section, key), neutral in _ADDED_OPTIONS.items():
-        sub = spec.get(section)
-        if isinstance(sub, dict) and key in sub and sub[key] == neutral:
-            spec = {**spec, section: {k: v for k, v in sub.items() if k != key}}
-    spec = {**spec, "amex_version": amex.__version__}
+    spec = {**_without_neutral(spec), "amex_version": amex.__version__}
     return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+def _spec(config: Any, leave_out: tuple[str, ...]) -> dict[str, Any]:
+    """The hashed form of ``config`` (module notes), without the keys ``leave_out``."""
+    spec = asdict(config)
+    if hasattr(config, "method_config") and "method" not in leave_out:
+        spec["method"] = asdict(config.method_config())
+    robot = spec.get("robot")
+    if isinstance(robot, dict) and not robot.get("q0"):
+        from amex.robot import CATALOGUE
+
+        known = CATALOGUE.get(robot.get("name", ""))
+        if known is not None:
+            robot["q0"] = list(known.q0)
+    return {k: v for k, v in spec.items() if k not in (*_NOT_RESULTS, *leave_out)}
 
 
 def config_hash(config: Any) -> str:
     """Hash of everything that determines an episode's result (see module docstring)."""
-    spec = {k: v for k, v in asdict(config).items() if k not in _NOT_RESULTS}
-    return _digest(spec)
+    return _digest(_spec(config, ()))
 
 
 def scene_hash(config: Any) -> str:
     """Hash of the benchmark's shared settings: equal for all tasks and methods of one sweep."""
-    spec = {
-        k: v for k, v in asdict(config).items() if k not in (*_NOT_RESULTS, "task", "method")
-    }
-    return _digest(spec)
+    return _digest(_spec(config, ("task", "method")))
 
 
 def format_value(value: object) -> str:

@@ -15,12 +15,18 @@ from amex.cli import UsageError, _validate_command_line, load_config
 from amex.config import RunConfig, validate
 from amex.errors import ConfigError
 from amex.methods import METHODS
+from amex.robot import load_robot
 from amex.runner import preflight
 
 
 def _config(method: str) -> RunConfig:
+    """Task 1 with ``method``; the robot's lists filled in (empty ones take catalogue values)."""
     config = RunConfig(task=1)
     config.method = METHODS[method].config_class()
+    robot = load_robot(config.robot)
+    config.robot.q0 = robot.q0.tolist()
+    config.robot.torque_limit = robot.torque_limit.tolist()
+    config.robot.velocity_limit = robot.velocity_limit.tolist()
     return config
 
 

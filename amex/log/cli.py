@@ -67,6 +67,7 @@ def _parser() -> _Parser:
     p.add_argument("-o", "--output", type=Path, metavar="OUT", required=True)
     p = sub.add_parser("layout", help="write the Foxglove layout, with this machine's URDF path")
     p.add_argument("-o", "--output", type=Path, metavar="JSON", default=Path("amex_layout.json"))
+    p.add_argument("--robot", default="panda", help="a catalogue robot (default: panda)")
     return parser
 
 
@@ -390,12 +391,12 @@ def recover_cmd(args: argparse.Namespace) -> None:
 
 
 def layout(args: argparse.Namespace) -> None:
-    """Write the shipped Foxglove layout with the absolute path of this machine's Panda URDF."""
-    from amex.robot import panda_urdf_path
+    """Write the shipped Foxglove layout with the absolute path of the robot's URDF."""
+    from amex.robot import RobotConfig, resolve
 
     output = _output(args.output, [".json"], "a JSON file")
     text = LAYOUT_FILE.read_text()
-    urdf = os.path.realpath(panda_urdf_path())
+    urdf = os.path.realpath(resolve(RobotConfig(name=args.robot)).urdf_path)
     text = text.replace(URDF_PLACEHOLDER, json.dumps(urdf)[1:-1])
     output.parent.mkdir(parents=True, exist_ok=True)
     try:

@@ -47,6 +47,7 @@ from scipy.linalg import expm
 from amex.errors import ConfigError
 from amex.interfaces import PD, Command
 from amex.methods.base import Method, MethodConfig, Observation, require_finite
+from amex.scaling import scaled
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
     from amex.plan.reference import ReferencePlan
@@ -77,8 +78,9 @@ class DMPConfig(MethodConfig):
         amplitude: ``"trained"`` (A = g_ref - y0 fixed, as the original) or ``"goal"``
             (A = g - y0 of the current goal).
         min_amplitude: floor of |A| [m] (axis components: [-]); smaller trained amplitudes are
-            floored and, in goal mode, not rescaled. 5 cm bounds the goal-mode shape scaling to
-            20 per metre of goal offset.
+            floored and, in goal mode, not rescaled. A length in original units
+            (:mod:`amex.scaling`): 0.25 m is 5 cm on the Panda's scene (scale 0.2), which bounds
+            the goal-mode shape scaling to 20 per metre of goal offset.
         basis_overlap: activation of a basis at the next centre [-].
         quad_step: longest quadrature sub-interval of an integration step [s].
     """
@@ -92,7 +94,7 @@ class DMPConfig(MethodConfig):
     beta_y: float = 25.0 / 4.0  # [-]
     ridge: float = 1e-7  # [-]
     amplitude: str = "trained"
-    min_amplitude: float = 0.05  # [m]
+    min_amplitude: float = field(default=0.25, metadata=scaled(1))  # [m] original units
     basis_overlap: float = 0.5  # [-]
     quad_step: float = 0.01  # [s]
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -12,6 +12,7 @@ from amex.errors import ConfigError
 from amex.interfaces import Command
 from amex.methods.base import Observation, require_finite
 from amex.methods.dmp import DMP, DMPConfig, DMPTarget
+from amex.scaling import scaled
 
 
 @dataclass
@@ -19,14 +20,16 @@ class DMPPSConfig(DMPConfig):
     """DMP with phase stopping (the paper's Eq. 2).
 
     Attributes:
-        beta_ps: phase-stopping gain [1/m^2]. The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)``
-            of its speed: with 1e3 a 1 cm tracking error slows it by 9 %, 3 cm halves it, 10 cm
-            divides it by 11, while the sub-millimetre lag of free tracking costs < 0.1 %. Axis
-            components enter unscaled (an axis error of 0.01 counts like 1 cm).
+        beta_ps: phase-stopping gain [1/m^2], in original units (:mod:`amex.scaling`: it carries
+            scale^-2). The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)`` of its speed: 40 on the
+            original scene is 1e3 on the Panda's (scale 0.2), where a 1 cm tracking error slows it
+            by 9 %, 3 cm halves it, 10 cm divides it by 11, while the sub-millimetre lag of free
+            tracking costs < 0.1 %. Axis components enter unscaled (on the Panda's scene an axis
+            error of 0.01 counts like 1 cm).
     """
 
     name: str = "dmp_ps"
-    beta_ps: float = 1e3  # [1/m^2]
+    beta_ps: float = field(default=40.0, metadata=scaled(-2))  # [1/m^2] original units
 
 
 class DMPPhaseStop(DMP):

@@ -1,6 +1,7 @@
 """Compute the reference plan once per configuration and keep it on disk.
 
-The cache key is a SHA-256 of everything the plan depends on: the URDF's bytes, the start
+The cache key is a SHA-256 of everything the plan depends on: the robot (its cleaned
+description, :attr:`~amex.robot.RobotModel.fingerprint`), the start
 configuration, the goal, the plan settings and :data:`PLAN_FORMAT` (bumped when the optimizer's
 mathematics change). Files are written atomically (:func:`amex.durable.replace_durably`), so
 parallel workers can share the cache. A cached file is used only if it holds a finite plan of the
@@ -16,13 +17,14 @@ import io
 import json
 import logging
 import math
-import os
 from pathlib import Path
 
 import numpy as np
 
 from amex.durable import WriteError, replace_durably
+from amex.paths import cache_dir
 from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
+from amex.plan.problem import joint_metric
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
 
@@ -31,21 +33,12 @@ PLAN_FORMAT = 1
 log = logging.getLogger(__name__)
 
 
-def cache_dir() -> Path:
-    """``$AMEX_CACHE_DIR``, else ``$XDG_CACHE_HOME/amex``, else ``~/.cache/amex``."""
-    if "AMEX_CACHE_DIR" in os.environ:
-        return Path(os.environ["AMEX_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "amex"
-
-
 def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
     """Hex digest identifying the plan for this robot, start, goal and settings."""
     h = hashlib.sha256()
-    h.update(Path(robot.urdf_path).read_bytes())
     spec = {
         "format": PLAN_FORMAT,
-        "robot": robot.name,
+        "robot": robot.fingerprint,
         "q0": [float(x) for x in robot.q0],
         "goal_pos": [float(x) for x in goal_pos],
         "goal_axis": [float(x) for x in goal_axis],
@@ -59,7 +52,8 @@ def solve_reference(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> ReferencePlan:
     """Solve the reference problem (no obstacles, start at rest in ``robot.q0``) from scratch."""
-    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0)
+    metric = joint_metric(config.metric, robot.nv)
+    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0, metric=metric)
     problem = TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),
@@ -73,7 +67,7 @@ def solve_reference(
     )
     solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
     y = np.array([robot.task_position(q) for q in solution.q])
-    return ReferencePlan(q=solution.q, y=y, dt=config.dt)
+    return ReferencePlan(q=solution.q, y=y, dt=config.dt, metric=metric)
 
 
 def load_cached(path: Path, robot: RobotModel, config: PlanConfig) -> ReferencePlan | None:
@@ -97,7 +91,9 @@ def load_cached(path: Path, robot: RobotModel, config: PlanConfig) -> ReferenceP
         and bool(np.isfinite(q).all() and np.isfinite(y).all())
         and np.allclose(q[0], robot.q0, rtol=0.0, atol=1e-9)
     )
-    return ReferencePlan(q=q, y=y, dt=config.dt) if fits else None
+    if not fits:
+        return None
+    return ReferencePlan(q=q, y=y, dt=config.dt, metric=joint_metric(config.metric, robot.nv))
 
 
 def store(path: Path, plan: ReferencePlan) -> bool:

@@ -104,12 +104,15 @@ def _retain_freed_memory() -> bool:
 
 
 @lru_cache(maxsize=8)
-def _acceleration_band(n: int, T: int, dt: float, weight: float) -> np.ndarray:
+def _acceleration_band(
+    n: int, T: int, dt: float, weight: float, metric: tuple[float, ...] = ()
+) -> np.ndarray:
     """``2 J_acc^T J_acc`` in lower band storage (2n subdiagonals), shape (2n + 1, nT); read-only.
 
     J_acc is ``sqrt(weight dt) / dt^2`` times the second-difference operator D on the free knots,
-    so the matrix is ``kron(D^T D, I_n)`` scaled; D^T D is pentadiagonal: diagonal 6 (5 and 1 at
-    the last two knots), first off-diagonal -4 (-2 at the last), second off-diagonal 1.
+    so the matrix is ``kron(D^T D, I_n)`` scaled (``kron(D^T D, H)`` with a joint ``metric``
+    diag(H)); D^T D is pentadiagonal: diagonal 6 (5 and 1 at the last two knots), first
+    off-diagonal -4 (-2 at the last), second off-diagonal 1.
     """
     scale = 2.0 * weight / dt**3
     band = np.zeros((2 * n + 1, n * T))
@@ -119,6 +122,8 @@ def _acceleration_band(n: int, T: int, dt: float, weight: float) -> np.ndarray:
     band[n, : n * max(T - 1, 0)] = -4.0 * scale
     band[n, n * max(T - 2, 0) : n * max(T - 1, 0)] = -2.0 * scale
     band[2 * n, : n * max(T - 2, 0)] = scale
+    if metric:  # every band entry couples a joint with itself: scale its column by H_jj
+        band *= np.tile(np.asarray(metric, dtype=float), T)
     band.flags.writeable = False
     return band
 
@@ -134,6 +139,17 @@ def _add_block(band: np.ndarray, block: np.ndarray, first: int) -> None:
     """Add a symmetric ``block`` starting at row/column ``first`` to a lower band matrix."""
     i, j = _lower_triangle(block.shape[0])
     band.ravel()[(i - j) * band.shape[1] + first + j] += block[i, j]
+
+
+def _acceleration_scale(costs: TrajectoryCosts, dt: float) -> float | np.ndarray:
+    """Factor of the second differences in the acceleration residuals.
+
+    ``sqrt(w dt) / dt^2``, times ``sqrt(H_jj)`` per joint with a joint metric (then shape (n,)).
+    """
+    s_acc = math.sqrt(costs.acceleration * dt) / dt**2
+    if costs.metric:
+        return s_acc * np.sqrt(np.asarray(costs.metric, dtype=float))
+    return s_acc
 
 
 def _final_terms(
@@ -235,7 +251,7 @@ def _residuals(
     """
     T, n = x.shape
     c, dt = problem.costs, problem.dt
-    s_acc = math.sqrt(c.acceleration * dt) / dt**2
+    s_acc = _acceleration_scale(c, dt)
     r_acc = np.empty((T, n))
     np.subtract(x[1:], x[:-1], out=r_acc[1:])  # first differences, then second ones
     r_acc[0] = x[0] - problem.q_start
@@ -274,13 +290,13 @@ def _linearize(robot: RobotModel, problem: TrajectoryProblem, point: _Point) -> 
     T, n = point.x.shape
     c, dt = problem.costs, problem.dt
     r_acc, r_fin, r_col = point.residuals
-    s_acc = math.sqrt(c.acceleration * dt) / dt**2
+    s_acc = _acceleration_scale(c, dt)
     grad = np.empty((T, n))  # D^T r_acc: r_t - 2 r_{t+1} + r_{t+2}, zero past the end
     grad[:] = r_acc
     grad[:-1] -= 2.0 * r_acc[1:]
     grad[:-2] += r_acc[2:]
     grad *= 2.0 * s_acc
-    hessian = np.array(_acceleration_band(n, T, float(dt), float(c.acceleration)))
+    hessian = np.array(_acceleration_band(n, T, float(dt), float(c.acceleration), c.metric))
 
     J_fin = point.final_jacobian
     m = J_fin.shape[1]

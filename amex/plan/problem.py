@@ -28,6 +28,8 @@ class TrajectoryCosts:
         final_axis_velocity: weight of the squared TCP z-axis rate at the end [s^2].
         collision: weight of sum over knots and pairs of max(0, 1 - d / margin)^2.
         collision_margin: distance below which the collision term acts [m].
+        metric: joint metric diag(H) of the acceleration term, ``sum_t q_ddot_t^T H q_ddot_t dt``
+            (:func:`joint_metric`); empty: the identity.
     """
 
     acceleration: float = 1.0
@@ -37,14 +39,36 @@ class TrajectoryCosts:
     final_axis_velocity: float = 1e3
     collision: float = 1.0
     collision_margin: float = 0.02  # [m]
+    metric: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
-        for name in (f.name for f in fields(self) if f.name != "collision_margin"):  # weights
+        object.__setattr__(self, "metric", tuple(float(h) for h in self.metric))
+        if not all(math.isfinite(h) and h > 0.0 for h in self.metric):
+            raise ConfigError.invalid("costs.metric", self.metric, "finite weights > 0")
+        weights = (f.name for f in fields(self) if f.name not in ("collision_margin", "metric"))
+        for name in weights:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
         if not (math.isfinite(self.collision_margin) and self.collision_margin > 0.0):
             raise ConfigError.invalid("costs.collision_margin", self.collision_margin, "> 0 [m]")
+
+
+METRICS = ("identity", "original")
+
+
+def joint_metric(kind: str, n: int) -> tuple[float, ...]:
+    """The joint metric diag(H) named ``kind`` for an ``n``-joint arm (empty: the identity).
+
+    ``original``: H = diag(sqrt(n), sqrt(n - 1), ..., 1), the default metric of the authors'
+    framework (for their 7-joint chain diag(sqrt 7, sqrt 6, sqrt 5, 2, sqrt 3, sqrt 2, 1)):
+    accelerating a joint near the base costs more, roughly as it moves more of the arm.
+    """
+    if kind == "identity":
+        return ()
+    if kind == "original":
+        return tuple(math.sqrt(n - j) for j in range(n))
+    raise ConfigError.invalid("metric", kind, METRICS)
 
 
 @dataclass(frozen=True, eq=False)
