@@ -28,18 +28,14 @@ import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-from mcap.reader import SeekingReader
-from mcap.records import Channel, Chunk, Message, Metadata, Schema, Statistics
-from mcap.stream_reader import StreamReader, breakup_chunk
 from mcap.writer import CompressionType, Writer
 
 from amex.errors import AmexError
 from amex.log.protobuf import ProtobufSchema
-
-MCAP_MAGIC = b"\x89MCAP0\r\n"
+from amex.log.records import MCAP_MAGIC, RawLog, read_indexed, read_stream
 
 
 class LogError(AmexError):
@@ -109,7 +105,7 @@ class LogData:
     truncated: bool = False
     note: str = ""
     corrupt: bool = False
-    _raw: _RawLog | None = field(default=None, repr=False, compare=False)
+    _raw: RawLog | None = field(default=None, repr=False, compare=False)
     _decoded: dict[str, list[LogMessage]] = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -242,29 +238,6 @@ class LogData:
         return out
 
 
-@dataclass
-class _RawLog:
-    """Records as read, for :func:`recover`."""
-
-    schemas: dict[int, Schema] = field(default_factory=dict)
-    channels: dict[int, Channel] = field(default_factory=dict)
-    messages: list[Message] = field(default_factory=list)
-    metadata: list[Metadata] = field(default_factory=list)
-
-
-class _ExactReader:
-    """A file wrapper whose short reads raise: the mcap stream reader would accept them."""
-
-    def __init__(self, f: IO[bytes]) -> None:
-        self._f = f
-
-    def read(self, n: int = -1) -> bytes:
-        data = self._f.read(n)
-        if n > 0 and len(data) != n:
-            raise EOFError(f"file ends {n - len(data)} bytes into a record")
-        return data
-
-
 def _check_file(path: Path) -> int:
     """Size of ``path``, or the error that says why it is no log."""
     if not path.exists():
@@ -283,90 +256,8 @@ def _check_file(path: Path) -> int:
     return size
 
 
-def _read_indexed(f: IO[bytes]) -> _RawLog | None:
-    """All records through the summary index; None if the file has no readable summary."""
-    try:
-        reader = SeekingReader(f)
-        if reader.get_summary() is None:
-            return None
-        raw = _RawLog()
-        for schema, channel, message in reader.iter_messages(log_time_order=True):
-            if schema is not None:
-                raw.schemas.setdefault(schema.id, schema)
-            raw.channels.setdefault(channel.id, channel)
-            raw.messages.append(message)
-        raw.metadata = list(reader.iter_metadata())
-        summary = reader.get_summary()
-        if summary is not None:  # channels without messages still count as channels
-            for sid, schema in summary.schemas.items():
-                raw.schemas.setdefault(sid, schema)
-            for cid, channel in summary.channels.items():
-                raw.channels.setdefault(cid, channel)
-        return raw
-    except Exception:  # any failure: fall back to the tolerant stream
-        return None
-
-
-class _Stream(NamedTuple):
-    """What streaming read besides the records: where and why it stopped, what it skipped."""
-
-    stopped: str  # why the top-level stream broke ("" if it reached the footer)
-    damaged: int  # chunks skipped because their content was damaged
-    expected: int | None  # the summary's message count, if its statistics record was read
-
-
-def _keep(raw: _RawLog, record: Any) -> None:
-    if isinstance(record, Schema):
-        raw.schemas[record.id] = record
-    elif isinstance(record, Channel):
-        raw.channels[record.id] = record
-    elif isinstance(record, Message):
-        if record.channel_id in raw.channels:
-            raw.messages.append(record)
-    elif isinstance(record, Metadata):
-        raw.metadata.append(record)
-
-
-def _read_stream(f: IO[bytes]) -> tuple[_RawLog, _Stream]:
-    """Every readable record: damaged chunks skipped, reading stops where the stream breaks."""
-    raw = _RawLog()
-    damaged = 0
-    expected = None
-    f.seek(len(MCAP_MAGIC))
-    reader = StreamReader(_ExactReader(f), skip_magic=True, emit_chunks=True)  # type: ignore[arg-type]
-    try:
-        for record in reader.records:
-            if isinstance(record, Chunk):
-                try:
-                    inner = list(breakup_chunk(record, validate_crc=True))
-                except Exception:  # a CRC mismatch or undecompressible data: skip this chunk
-                    damaged += 1
-                    continue
-                for r in inner:
-                    _keep(raw, r)
-            elif isinstance(record, Statistics):
-                expected = record.message_count
-            else:
-                _keep(raw, record)
-    except Exception as e:  # a cut or unreadable record ends the readable part
-        return raw, _Stream(_reason(e), damaged, expected)
-    return raw, _Stream("", damaged, expected)
-
-
-def _reason(error: Exception) -> str:
-    """Why streaming stopped, in words."""
-    text = str(error)
-    if "18446744073709551615" in text:  # the writer's placeholder length of an open chunk
-        return "an unfinished chunk"
-    if isinstance(error, EOFError) or type(error).__name__ == "EndOfFile":
-        return "a record cut short"
-    if "CRC" in type(error).__name__ or "crc" in text.lower():
-        return "a damaged chunk (CRC mismatch)"
-    return f"{type(error).__name__}: {text}"[:200]
-
-
 def _decode(
-    raw: _RawLog, path: Path, size: int, truncated: bool, note: str, corrupt: bool = False
+    raw: RawLog, path: Path, size: int, truncated: bool, note: str, corrupt: bool = False
 ) -> LogData:
     raw.messages.sort(key=lambda m: (m.log_time, m.channel_id, m.sequence))
     by_topic: dict[str, list[LogMessage]] = {c.topic: [] for c in raw.channels.values()}
@@ -412,12 +303,12 @@ def read_log(path: Path | str) -> LogData:
     size = _check_file(path)
     try:
         with open(path, "rb") as f:
-            raw = _read_indexed(f)
+            raw = read_indexed(f)
             if raw is not None:
                 return _decode(raw, path, size, False, "")
             f.seek(max(size - len(MCAP_MAGIC), 0))
             complete = f.read(len(MCAP_MAGIC)) == MCAP_MAGIC and size > 2 * len(MCAP_MAGIC)
-            raw, stream = _read_stream(f)
+            raw, stream = read_stream(f)
     except OSError as e:
         raise LogError(f"cannot read {path}: {e.strerror or e}") from e
     truncated = bool(stream.stopped) and not complete
