@@ -323,21 +323,23 @@ def run_main() -> None:
     argv = sys.argv[1:]
     debug = os.environ.get("AMEX_DEBUG") == "1"
     informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
-    if not informational.intersection(argv):
-        try:
-            _validate_command_line(argv)
-        except UsageError as e:
-            if debug:
-                raise
-            _fail(str(e))
-    import hydra
-
-    _register_schemas()
-    main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(_task)
-    os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop when this process is gone
-    os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors instead of printing them
     try:
         with signals_raise():
+            if not informational.intersection(argv):
+                try:
+                    _validate_command_line(argv)
+                except UsageError as e:
+                    if debug:
+                        raise
+                    _fail(str(e))
+            import hydra
+
+            _register_schemas()
+            main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(
+                _task
+            )
+            os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
+            os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors, we print one line
             main()
     except (JobFailed, KeyboardInterrupt, Exception) as e:
         if debug:
