@@ -320,7 +320,9 @@ def run_main() -> None:
     from amex.launch import JobFailed
     from amex.processes import LAUNCHER_PID, signals_raise
 
-    argv = sys.argv[1:]
+    multirun_flags = [a for a in sys.argv[1:] if a in ("-m", "--multirun")]
+    argv = multirun_flags + [a for a in sys.argv[1:] if a not in multirun_flags]
+    sys.argv[1:] = argv  # Hydra's parser wants -m before the overrides; accept it anywhere
     debug = os.environ.get("AMEX_DEBUG") == "1"
     informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
     try:

@@ -156,13 +156,16 @@ def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: boo
             )
         hydra_cfg: Any = OmegaConf.to_container(cfg.hydra, resolve=False)
         key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
-        directory = Path(str(OmegaConf.select(cfg, key)))
+        chosen = str(OmegaConf.select(cfg, key) or "")
+        directory = Path(chosen)
         subdir = str(OmegaConf.select(cfg, "hydra.sweep.subdir")) if multirun else ""
         job = directory / subdir
     except Exception as e:  # Hydra and OmegaConf raise many types for bad input
         raise LaunchError(explain(e, overrides + hydra_overrides)) from e
     finally:
         GlobalHydra.instance().clear()
+    if not chosen.strip():
+        raise LaunchError(f"invalid {key}=''; valid: a directory path (runs/mine, /data/run1, ...)")
     launcher = hydra_cfg.get("launcher") or {}
     if multirun and str(launcher.get("_target_", "")).endswith("JoblibLauncher"):
         _check_joblib(launcher)

@@ -126,6 +126,7 @@ def test_an_unknown_key_is_an_error_with_or_without_plus(overrides, needle):
         (["-m", "hydra.launcher.n_jobs=0"], "hydra.launcher.n_jobs=0"),
         (["hydra/launcher=nope"], "hydra/launcher='nope'"),
         (["experiment=nope"], "experiment='nope'"),
+        (["hydra.run.dir="], "hydra.run.dir=''"),
     ],
 )
 def test_bad_values_are_refused_before_any_directory_exists(tmp_path, monkeypatch, argv, needle):
