@@ -51,10 +51,12 @@ studies: $(STAMP)
 	$(BIN)/python -m analysis.pr2 --episodes 30
 
 ## The whole comparison: 4 tasks x 3 methods x 150 environments, then the table.
+## EXPERIMENT=original runs the authors' setup (conf/experiment/original.yaml) into runs/paper_original.
 ## Re-running resumes: recorded episodes are kept and skipped.
-PAPER_DIR ?= runs/paper
+EXPERIMENT ?=
+PAPER_DIR ?= runs/paper$(if $(EXPERIMENT),_$(EXPERIMENT))
 paper: $(STAMP)
-	$(BIN)/amex-run -m task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=$(PAPER_DIR)
+	$(BIN)/amex-run -m $(if $(EXPERIMENT),experiment=$(EXPERIMENT)) task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=$(PAPER_DIR)
 	$(BIN)/python -m analysis.table $(PAPER_DIR)
 
 clean:

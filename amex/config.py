@@ -14,8 +14,9 @@ from typing import Any
 from amex.control.osc import PD, OSCGains
 from amex.episode import LoopConfig, MismatchConfig
 from amex.errors import ConfigError
-from amex.methods import METHODS, MethodConfig
+from amex.methods import IMPLEMENTATIONS, METHODS, MethodConfig
 from amex.perception import PerceptionConfig, PredictionConfig
+from amex.plan.problem import METRICS
 from amex.plan.reference import PlanConfig
 from amex.robot import RobotConfig, load_robot
 from amex.scaling import scale_power, scale_value, scaled, to_scene_units
@@ -36,7 +37,11 @@ class ControllerConfig:
         joint: joint-target task gains, used by CR's joint commands (original: 100, 100).
         damping: joint damping task (original: Kd 10 at precision 0.1; we weight it 0.01).
         margin: collision margin (original 0.1 m; scene units, :mod:`amex.scaling`) [m].
-        reg: regularizer H = reg * I of Eq. 4 [-].
+        reg: regularizer H = reg * I of Eq. 4 [-] (original 1e-3 with the metric below).
+        metric: ``identity`` or ``original``: H = reg * diag(sqrt(n), ..., 1), the authors'.
+        drift: subtract the TCP tasks' drift J_dot v (the original did not).
+        joint_only: joint-target commands (CR) are tracked by the joint task alone, without the
+            damping and collision tasks (the authors' CR controller).
     """
 
     col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
@@ -44,6 +49,9 @@ class ControllerConfig:
     damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
     margin: float = field(default=0.1, metadata=scaled(1))
     reg: float = 1e-6
+    metric: str = "identity"
+    drift: bool = True
+    joint_only: bool = False
 
 
 @dataclass
@@ -64,6 +72,10 @@ class RunConfig:
         sim: ``dynamic`` (MuJoCo integrates the torques of the inner controller) or
             ``kinematic`` (the controller's joint accelerations are integrated directly, as the
             authors' code did; :mod:`amex.episode`).
+        state_lag: methods and the stop rule see the task state one inner step late, as in the
+            authors' loop (:mod:`amex.episode`).
+        implementation: ``ours`` or ``original``: amex, dmp and cr as the authors' harness ran
+            them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
         log: ``none`` or ``full`` (one MCAP file per episode).
         perception: goal noise and latency (default exact).
         prediction: constant-velocity Kalman prediction of the goal (default off).
@@ -87,6 +99,8 @@ class RunConfig:
     success_radius: float = 0.03
     stop_radius: float = field(default=0.03, metadata=scaled(1))
     sim: str = "dynamic"
+    state_lag: bool = False
+    implementation: str = "ours"
     log: str = "none"
 
     @property
@@ -101,6 +115,7 @@ class RunConfig:
             success_radius=float(self.success_radius),
             stop_radius=stop,
             kinematic=self.sim == "kinematic",
+            state_lag=bool(self.state_lag),
         )
 
     def method_config(self) -> Any:
@@ -118,6 +133,9 @@ class RunConfig:
             damping=c.damping,
             margin=c.margin,
             reg=c.reg,
+            metric=c.metric,
+            drift=c.drift,
+            joint_only=c.joint_only,
         )
 
 
@@ -139,6 +157,12 @@ def validate(config: RunConfig) -> None:
         raise ConfigError.invalid("episodes", config.episodes, "an integer >= 1")
     if config.log not in LOG_LEVELS:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
+    if config.implementation not in IMPLEMENTATIONS:
+        raise ConfigError.invalid("implementation", config.implementation, IMPLEMENTATIONS)
+    metrics = {"plan.metric": config.plan.metric, "controller.metric": config.controller.metric}
+    for key, value in metrics.items():
+        if value not in METRICS:
+            raise ConfigError.invalid(key, value, METRICS)
     if config.sim not in SIMULATIONS:
         raise ConfigError.invalid("sim", config.sim, SIMULATIONS)
     if config.sim == "kinematic" and config.mismatch != type(config.mismatch)():

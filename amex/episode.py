@@ -13,7 +13,12 @@ mismatch play no role and an episode costs no inverse dynamics and no MuJoCo ste
 places the arm's geoms at every step of a scene with obstacles and detects contacts
 (``mj_kinematics`` + ``mj_collision``), so ``collided`` means the same in both; the arm passes
 through what it touches. ``sum_sq_acc`` sums MuJoCo's ``qacc`` (dynamic) or ``q_ddot*``
-(kinematic).
+(kinematic); the joint angles of every inner step are kept for ``sum_sq_acc_paper``
+(:func:`amex.metrics.paper_sum_sq_acc`).
+
+State lag (``LoopConfig.state_lag``): in the authors' loop the task state a method read, and the
+TCP the stop rule measured, were computed before the last inner integration step, so they were one
+inner step (1 ms) old; the controller's own state was current.
 
 Termination: the episode stops when the TCP is within ``stop_radius`` of the current goal (checked
 at every inner step, before the command is applied), else at ``max_time``. Success is judged on the
@@ -44,7 +49,7 @@ from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
 from amex.errors import AmexError, ConfigError, SimulationError
 from amex.methods.base import Method, Observation
-from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult
+from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult, paper_sum_sq_acc
 from amex.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.robot import RobotModel
 from amex.scenario import Scenario
@@ -66,6 +71,9 @@ class LoopConfig:
             many times its rated speed [-].
         kinematic: integrate the controller's accelerations instead of simulating the dynamics
             (module notes).
+        state_lag: methods see the task state (y, y_dot) of the previous inner step, and the
+            stop rule its TCP, as in the authors' harness (module notes); joint states are
+            current either way.
     """
 
     outer_hz: float = 100.0
@@ -75,6 +83,7 @@ class LoopConfig:
     stop_radius: float = 0.006
     speed_limit_factor: float = 5.0
     kinematic: bool = False
+    state_lag: bool = False
 
     @property
     def substeps(self) -> int:
@@ -238,6 +247,11 @@ def run_episode(
     kinematic = loop.kinematic
     detect_contacts = kinematic and scenario.n_obstacles > 0
     no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
+    q_history = np.empty((n_steps + 1, robot.nv))  # joint angles of every inner step
+    lag = loop.state_lag
+    seen_tcp: list[float] | None = None  # the lagging TCP position of the stop rule
+    seen_y: np.ndarray | None = None  # the lagging task state methods see
+    seen_yd: np.ndarray | None = None
     compute_times: list[float] = []
     sum_sq_acc = 0.0
     collided = False
@@ -254,10 +268,11 @@ def run_episode(
             q = mjd.qpos.copy() if outer else mjd.qpos
             v = mjd.qvel.copy() if outer else mjd.qvel
             state = RobotState(robot, pdata, q, v)
+            q_history[k] = q
             if t <= goal_moves_until:
                 goal = scenario.goal_at(t)
                 gx, gy, gz = goal.tolist()
-            px, py, pz = state.y_list[:3]
+            px, py, pz = state.y_list[:3] if seen_tcp is None else seen_tcp
             distance = math.sqrt((px - gx) ** 2 + (py - gy) ** 2 + (pz - gz) ** 2)
             if distance <= loop.stop_radius:
                 break
@@ -274,8 +289,8 @@ def run_episode(
                     t=t,
                     q=q,
                     qd=v,
-                    y=state.y,
-                    yd=state.yd,
+                    y=state.y if seen_y is None else seen_y,
+                    yd=state.yd if seen_yd is None else seen_yd,
                     goal=np.concatenate([seen, goal_axis]),
                     obstacles=obstacles,
                     obstacle_radii=radii,
@@ -285,7 +300,13 @@ def run_episode(
                 tic = time.perf_counter_ns()
                 command = method.step(obs)
                 compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
+                if method.finished:  # the method ended the execution (the authors' CR)
+                    break
                 _check_command(command)
+            if lag:  # what the next step's stop rule and observation see
+                seen_tcp = state.y_list[:3]
+                if (k + 1) % substeps == 0:
+                    seen_y, seen_yd = state.y, state.yd
             if kinematic:
                 qacc = osc.accelerations(state, command)
                 tau = no_torque
@@ -313,6 +334,7 @@ def run_episode(
     except AmexError as e:
         failure = f"solver: {e}"
     final_time = t
+    steps = q_history[: k + 1]
     result = EpisodeResult(
         task=scenario.task,
         method=method.name,
@@ -327,6 +349,8 @@ def run_episode(
         compute_time_median=float(np.median(compute_times)) if compute_times else math.nan,
         compute_time_mean=float(np.mean(compute_times)) if compute_times else math.nan,
         failure=failure,
+        sum_sq_acc_paper=paper_sum_sq_acc(steps, dt) if np.isfinite(steps).all() else math.nan,
+        int_sq_acc=float(sum_sq_acc) * dt,
     )
     if recorder is not None:
         recorder.finish(result)

@@ -27,11 +27,11 @@ from amex.episode import run_episode
 from amex.errors import ConfigError
 from amex.methods import get_method
 from amex.metrics import EpisodeResult, summarize
-from amex.plan.cache import reference_plan
-from amex.plan.problem import TrajectoryCosts, joint_metric
+from amex.plan.cache import reference_costs, reference_plan
+from amex.plan.problem import joint_metric
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
-from amex.scenario import make_scenario, reference_goal
+from amex.scenario import make_scenario, plan_goal
 from amex.schema import field_names
 from amex.store import EpisodeStore, config_hash, scene_hash
 
@@ -56,7 +56,7 @@ def stand_in_plan(robot: RobotModel, config: RunConfig) -> ReferencePlan:
     """
     n = config.plan.steps + 1
     y0 = robot.task_position(robot.q0)
-    goal_pos = reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation)
+    goal_pos = plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation)
     goal = np.concatenate([goal_pos, config.scenario.goal_axis])
     u = np.linspace(0.0, 1.0, n)[:, None]
     y = (1.0 - u) * y0 + u * goal
@@ -74,8 +74,7 @@ def preflight(config: RunConfig) -> None:
     """
     validate(config)
     robot = load_robot(config.robot)
-    metric = joint_metric(config.plan.metric, robot.nv)
-    TrajectoryCosts(**config.plan.cost_weights(), collision=0.0, metric=metric)
+    reference_costs(robot, config.plan)
     name = config.method.name
     try:
         get_method(name).from_plan(
@@ -97,7 +96,7 @@ def prepare(config: RunConfig) -> RunContext:
     plan = reference_plan(
         robot,
         config.plan,
-        reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation),
+        plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation),
         np.asarray(config.scenario.goal_axis, dtype=float),
     )
     return RunContext(robot, plan)
@@ -110,7 +109,7 @@ def run_one(
 
     With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
     """
-    method_cls = get_method(config.method.name)
+    method_cls = get_method(config.method.name, config.implementation)
     method = method_cls.from_plan(
         context.plan, config.method_config(), 1.0 / config.outer_hz, context.robot
     )

@@ -56,6 +56,8 @@ class ScenarioConfig:
         plane_grid: grid points along y, z on the plane (original 10 x 15 = 150).
         obstacle_radius: sphere radius (original 0.1 m) [m].
         obstacle_speed_std: std of each obstacle velocity component, Task 4 (original 0.1) [m/s].
+        plane_reference: Tasks 3-4 plan their reference to the plane's centre, as the original
+            (default: every task plans to ``reference_goal``, the box centre).
     """
 
     scale: float = 0.2
@@ -73,6 +75,7 @@ class ScenarioConfig:
     plane_grid: list[int] = field(default_factory=lambda: [15, 10])
     obstacle_radius: float = field(default=0.1, metadata=scaled(1))
     obstacle_speed_std: float = field(default=0.1, metadata=scaled(1))
+    plane_reference: bool = False
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` for values no scene can be built from."""
@@ -171,6 +174,18 @@ def with_reference_goal(config: ScenarioConfig, start_tcp: np.ndarray) -> Scenar
     """A copy of ``config`` whose ``reference_goal`` is stated (:func:`reference_goal`)."""
     goal = reference_goal(config, start_tcp)
     return dataclasses.replace(config, reference_goal=[float(x) for x in goal])
+
+
+def plan_goal(config: ScenarioConfig, task: int, start_tcp: np.ndarray) -> np.ndarray:
+    """The goal of the reference plan of ``task``, shape (3,) [m].
+
+    :func:`reference_goal`, or with ``plane_reference`` the Task-3/4 plane's centre for those.
+    """
+    goal = reference_goal(config, start_tcp)
+    if config.plane_reference and task in (3, 4):
+        offset = to_scene_units(config, config.scale).plane_offset
+        goal = goal + np.array([offset, 0.0, 0.0])
+    return goal
 
 
 def goal_grid(config: ScenarioConfig, task: int) -> np.ndarray:

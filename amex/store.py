@@ -31,7 +31,7 @@ from typing import Any
 import amex
 from amex.durable import append_durably, replace_durably
 from amex.errors import AmexError
-from amex.metrics import COLUMNS, EpisodeResult
+from amex.metrics import COLUMNS, REQUIRED_COLUMNS, EpisodeResult
 
 HASH_COLUMNS = ("config_hash", "scene_hash")
 CSV_COLUMNS = COLUMNS + HASH_COLUMNS
@@ -42,7 +42,15 @@ _NOT_RESULTS = ("episodes", "log")
 _ADDED_OPTIONS: dict[tuple[str, ...], object] = {
     ("perception", "preview"): 0.0,
     ("sim",): "dynamic",
+    ("state_lag",): False,
     ("plan", "metric"): "identity",
+    ("plan", "final_velocity_space"): "joint",
+    ("plan", "solver"): "levenberg",
+    ("controller", "metric"): "identity",
+    ("controller", "drift"): True,
+    ("controller", "joint_only"): False,
+    ("scenario", "plane_reference"): False,
+    ("implementation",): "ours",
     ("scenario", "reference_offset"): [0.385, 1.147, -0.131],
     ("robot", "urdf"): "",
     ("robot", "joints"): [],
@@ -136,6 +144,8 @@ def parse_result(row: dict[str, str]) -> EpisodeResult:
     """
     values: dict[str, Any] = {}
     for f in fields(EpisodeResult):
+        if f.name not in row and f.name not in REQUIRED_COLUMNS:
+            continue  # a metric added after the file was written: its default (nan)
         text = row[f.name]
         if f.type in ("bool", bool):
             values[f.name] = parse_bool(text, f.name)
@@ -172,7 +182,7 @@ def read_rows(path: Path) -> list[dict[str, str]]:
         header = next(reader)
     except StopIteration:
         raise StoreError(f"{path}: no header line") from None
-    if tuple(header[: len(COLUMNS)]) != COLUMNS:
+    if tuple(header[: len(REQUIRED_COLUMNS)]) != REQUIRED_COLUMNS:
         raise StoreError(f"{path}: not an amex episodes.csv (header {','.join(header[:4])}...)")
     rows = []
     for lineno, values in enumerate(reader, start=2):
@@ -221,7 +231,8 @@ class EpisodeStore:
         return rows
 
     def _rewrite(self, rows: list[dict[str, str]]) -> None:
-        lines = [_line(list(CSV_COLUMNS))] + [_line([row[c] for c in CSV_COLUMNS]) for row in rows]
+        lines = [_line(list(CSV_COLUMNS))]
+        lines += [_line([row.get(c, "nan") for c in CSV_COLUMNS]) for row in rows]
         replace_durably(self.path, "".join(lines).encode())
 
     def append(self, result: EpisodeResult) -> None:

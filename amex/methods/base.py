@@ -133,3 +133,11 @@ class Method(abc.ABC):
     def internals(self) -> dict[str, Any]:
         """The method's internal state after the last step, for logs (e.g. AMEX's phase)."""
         return {}
+
+    @property
+    def finished(self) -> bool:
+        """Whether the method ended the execution at its last step (the episode then stops).
+
+        False for every method but the authors' CR, which stopped at the end of its horizon.
+        """
+        return False

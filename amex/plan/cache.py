@@ -23,7 +23,12 @@ import numpy as np
 
 from amex.durable import WriteError, replace_durably
 from amex.paths import cache_dir
-from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
+from amex.plan.optimizer import (
+    TrajectoryCosts,
+    TrajectoryProblem,
+    solve_trajectory,
+    solve_trajectory_newton,
+)
 from amex.plan.problem import joint_metric
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
@@ -48,12 +53,22 @@ def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
     return h.hexdigest()[:20]
 
 
+def reference_costs(robot: RobotModel, config: PlanConfig) -> TrajectoryCosts:
+    """The reference problem's cost terms (ConfigError for a setting they cannot take)."""
+    return TrajectoryCosts(
+        **config.cost_weights(),
+        collision=0.0,
+        metric=joint_metric(config.metric, robot.nv),
+        final_velocity_space=config.final_velocity_space,
+    )
+
+
 def solve_reference(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> ReferencePlan:
     """Solve the reference problem (no obstacles, start at rest in ``robot.q0``) from scratch."""
-    metric = joint_metric(config.metric, robot.nv)
-    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0, metric=metric)
+    costs = reference_costs(robot, config)
+    metric = costs.metric
     problem = TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),
@@ -65,7 +80,10 @@ def solve_reference(
         obstacle_radii=np.zeros(0),
         costs=costs,
     )
-    solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
+    if config.solver == "newton":
+        solution = solve_trajectory_newton(robot, problem, max_iterations=config.max_iterations)
+    else:
+        solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
     y = np.array([robot.task_position(q) for q in solution.q])
     return ReferencePlan(q=solution.q, y=y, dt=config.dt, metric=metric)
 

@@ -15,6 +15,9 @@ import numpy as np
 
 from amex.errors import ConfigError, SolverError
 
+METRICS = ("identity", "original")
+VELOCITY_SPACES = ("joint", "tcp")
+
 
 @dataclass(frozen=True)
 class TrajectoryCosts:
@@ -30,6 +33,9 @@ class TrajectoryCosts:
         collision_margin: distance below which the collision term acts [m].
         metric: joint metric diag(H) of the acceleration term, ``sum_t q_ddot_t^T H q_ddot_t dt``
             (:func:`joint_metric`); empty: the identity.
+        final_velocity_space: the final velocity term on the joints (``joint``, ours:
+            ``(q_T - q_{T-1}) / dt``) or on the TCP position (``tcp``, the original's:
+            ``(p(q_T) - p(q_{T-1})) / dt``).
     """
 
     acceleration: float = 1.0
@@ -40,21 +46,24 @@ class TrajectoryCosts:
     collision: float = 1.0
     collision_margin: float = 0.02  # [m]
     metric: tuple[float, ...] = ()
+    final_velocity_space: str = "joint"
 
     def __post_init__(self) -> None:
+        if self.final_velocity_space not in VELOCITY_SPACES:
+            raise ConfigError.invalid(
+                "final_velocity_space", self.final_velocity_space, VELOCITY_SPACES
+            )
         object.__setattr__(self, "metric", tuple(float(h) for h in self.metric))
         if not all(math.isfinite(h) and h > 0.0 for h in self.metric):
             raise ConfigError.invalid("costs.metric", self.metric, "finite weights > 0")
-        weights = (f.name for f in fields(self) if f.name not in ("collision_margin", "metric"))
+        not_weights = ("collision_margin", "metric", "final_velocity_space")
+        weights = (f.name for f in fields(self) if f.name not in not_weights)
         for name in weights:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
         if not (math.isfinite(self.collision_margin) and self.collision_margin > 0.0):
             raise ConfigError.invalid("costs.collision_margin", self.collision_margin, "> 0 [m]")
-
-
-METRICS = ("identity", "original")
 
 
 def joint_metric(kind: str, n: int) -> tuple[float, ...]:

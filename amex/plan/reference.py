@@ -57,6 +57,10 @@ class PlanConfig:
         final_axis_velocity: weight of the final TCP z-axis velocity (original 1e3).
         metric: joint metric of the acceleration term, ``identity`` or ``original`` (the
             authors' H = diag(sqrt(n), ..., 1); :func:`~amex.plan.problem.joint_metric`).
+        final_velocity_space: the final velocity term on the ``joint`` velocities (ours) or on
+            the ``tcp`` position's (the original's).
+        solver: ``levenberg`` (:func:`~amex.plan.optimizer.solve_trajectory`) or ``newton``
+            (the authors' :func:`~amex.plan.optimizer.solve_trajectory_newton`).
     """
 
     duration: float = 4.0
@@ -68,6 +72,8 @@ class PlanConfig:
     final_axis: float = 1e4
     final_axis_velocity: float = 1e3
     metric: str = "identity"
+    final_velocity_space: str = "joint"
+    solver: str = "levenberg"
 
     def cost_weights(self) -> dict[str, float]:
         """The plan's cost weights, named as :class:`~amex.plan.optimizer.TrajectoryCosts` does."""
