@@ -44,6 +44,7 @@ from typing import Any, Protocol
 import mujoco
 import numpy as np
 
+from amex.control import kernels
 from amex.control.collision import CollisionModel
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
@@ -310,8 +311,7 @@ def run_episode(
             if kinematic:
                 qacc = osc.accelerations(state, command)
                 tau = no_torque
-                mjd.qpos += dt * mjd.qvel
-                mjd.qvel += dt * qacc
+                kernels.euler_inplace(mjd.qpos, mjd.qvel, qacc, dt)
                 mjd.time += dt
                 if detect_contacts:
                     mujoco.mj_kinematics(mjm, mjd)

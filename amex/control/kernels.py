@@ -239,3 +239,11 @@ def clip_inplace(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
             x[i] = lo[i]
         elif x[i] > hi[i]:
             x[i] = hi[i]
+
+
+@numba.njit(cache=True)
+def euler_inplace(q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float) -> None:
+    """``q += dt v; v += dt a`` element-wise, in place (the kinematic simulation's step)."""
+    for i in range(q.shape[0]):
+        q[i] += dt * v[i]
+        v[i] += dt * a[i]
