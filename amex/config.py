@@ -21,8 +21,10 @@ from amex.plan.reference import PlanConfig
 from amex.robot import RobotConfig, load_robot
 from amex.scaling import scale_power, scale_value, scaled, to_scene_units
 from amex.scenario import TASKS, ScenarioConfig
+from amex.schema import check_tree
 
 LOG_LEVELS = ("none", "full")
+MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
 SIMULATIONS = ("dynamic", "kinematic")
 
 
@@ -138,16 +140,21 @@ class RunConfig:
 
 
 def validate(config: RunConfig) -> None:
-    """Raise :class:`ConfigError` naming the first invalid value and the valid choices."""
+    """Raise :class:`ConfigError` naming the first invalid value and the valid choices.
+
+    Besides the checks below, :func:`amex.schema.check_tree` checks every field of the tree: no
+    non-finite number anywhere, no negative scalar unless the field allows it, no unknown key, and
+    each node's own ``validate()``. Whether the method can be built from its parameters is
+    checked by :func:`amex.runner.preflight`.
+    """
     if isinstance(config.task, bool) or config.task not in TASKS:
         raise ConfigError.invalid("task", config.task, TASKS)
     name = getattr(config.method, "name", None)
     if name not in METHODS:
         raise ConfigError.invalid("method", name, sorted(METHODS))
+    check_tree(config)
     if config.episodes < 1:
         raise ConfigError.invalid("episodes", config.episodes, "an integer >= 1")
-    if config.seed < 0:
-        raise ConfigError.invalid("seed", config.seed, "an integer >= 0")
     if config.log not in LOG_LEVELS:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
     if config.implementation not in IMPLEMENTATIONS:
@@ -163,7 +170,6 @@ def validate(config: RunConfig) -> None:
             f"invalid mismatch={config.mismatch} with sim=kinematic; "
             "valid: the defaults (a kinematic simulation has no dynamics to mismatch)"
         )
-    config.scenario.validate()
     config.loop.validate()
     if config.loop.stop_radius > config.success_radius:
         raise ConfigError.invalid(
@@ -171,17 +177,14 @@ def validate(config: RunConfig) -> None:
             f"at most success_radius = {config.success_radius} m once x scenario.scale",
         )
     load_robot(config.robot)  # a description the loop cannot use is a configuration error
-    config.perception.validate()
-    config.prediction.validate()
-    config.mismatch.validate()
     plan = config.plan
     if not (plan.dt > 0 and plan.duration > 0):
         raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")
     if not math.isclose(plan.duration / plan.dt, round(plan.duration / plan.dt), abs_tol=1e-9):
         raise ConfigError.invalid("plan.duration", plan.duration, "an integer multiple of plan.dt")
+    if not 2 <= plan.steps <= MAX_PLAN_STEPS:
+        raise ConfigError.invalid(
+            "plan.dt", plan.dt, f"a spacing giving 2..{MAX_PLAN_STEPS} knots over plan.duration"
+        )
     if plan.max_iterations < 1:
         raise ConfigError.invalid("plan.max_iterations", plan.max_iterations, "an integer >= 1")
-    for key in ("pos", "dir"):
-        gains = getattr(config.method, key)
-        if gains.kp < 0 or gains.kd < 0 or gains.weight < 0:
-            raise ConfigError.invalid(f"method.{key}", gains, "kp, kd, weight >= 0")

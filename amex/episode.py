@@ -54,6 +54,7 @@ from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult, paper_sum_sq_acc
 from amex.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.robot import RobotModel
 from amex.scenario import Scenario
+from amex.schema import check_tree
 
 
 @dataclass(frozen=True)
@@ -92,6 +93,7 @@ class LoopConfig:
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` on rates or limits the loop cannot run with."""
+        check_tree(self)  # finite, >= 0
         if not self.outer_hz > 0:
             raise ConfigError.invalid("outer_hz", self.outer_hz, "a rate > 0 [Hz]")
         if not self.inner_hz > 0:

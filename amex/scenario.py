@@ -29,6 +29,7 @@ import numpy as np
 
 from amex.errors import ConfigError
 from amex.scaling import scaled, to_scene_units
+from amex.schema import SIGNED
 
 TASKS = (0, 1, 2, 3, 4)
 #: The original start-to-goal offset: reference goal (0.75, -1.4, 1.7) minus the chain's start
@@ -69,7 +70,8 @@ class ScenarioConfig:
     box_grid: list[int] = field(default_factory=lambda: [3, 5, 10])
     goal_speed_std: float = field(default=0.1, metadata=scaled(1))
     goal_motion_window: float = 0.7
-    plane_offset: float = field(default=0.35, metadata=scaled(1))
+    # either side of the box centre
+    plane_offset: float = field(default=0.35, metadata={**scaled(1), **SIGNED})
     plane_grid: list[int] = field(default_factory=lambda: [15, 10])
     obstacle_radius: float = field(default=0.1, metadata=scaled(1))
     obstacle_speed_std: float = field(default=0.1, metadata=scaled(1))

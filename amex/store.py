@@ -11,8 +11,10 @@ Every row carries two hashes of the configuration that produced it:
 * ``scene_hash``: the same without task and method, so rows of different methods with equal scene
   hashes ran on identical environments (the condition for paired comparisons).
 
-A row is appended with a single ``write`` of the complete line on an ``O_APPEND`` descriptor and
-fsynced, so a killed run leaves whole rows; a torn last line (e.g. a full disk) is dropped on read.
+Rows are written through :mod:`amex.durable`: a row is appended completely and fsynced, or the
+file is cut back to its previous length and :class:`~amex.durable.WriteError` raised (a full
+disk), so a killed or failed run leaves whole rows only and resumes once the cause is gone; a torn
+last line (e.g. a power loss) is dropped on read. A zero-byte file counts as no rows (a fresh run).
 """
 
 from __future__ import annotations
@@ -22,12 +24,12 @@ import hashlib
 import io
 import json
 import math
-import os
 from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
 import amex
+from amex.durable import append_durably, replace_durably
 from amex.errors import AmexError
 from amex.metrics import COLUMNS, REQUIRED_COLUMNS, EpisodeResult
 
@@ -125,17 +127,33 @@ def _line(values: list[str]) -> str:
     return buf.getvalue()
 
 
+def parse_bool(text: str, name: str = "value") -> bool:
+    """A flag as written by :func:`format_value`: exactly ``0`` or ``1``, else ``ValueError``."""
+    if text == "1":
+        return True
+    if text == "0":
+        return False
+    raise ValueError(f"{name}={text!r}, valid: 0 or 1")
+
+
 def parse_result(row: dict[str, str]) -> EpisodeResult:
-    """An :class:`EpisodeResult` from a csv row (as read by ``csv.DictReader``)."""
+    """An :class:`EpisodeResult` from a csv row (as read by ``csv.DictReader``).
+
+    The one parser of stored values (resume and ``make table`` alike): flags must be 0 or 1,
+    integers integers; anything else raises ``ValueError`` naming the column.
+    """
     values: dict[str, Any] = {}
     for f in fields(EpisodeResult):
         if f.name not in row and f.name not in REQUIRED_COLUMNS:
             continue  # a metric added after the file was written: its default (nan)
         text = row[f.name]
         if f.type in ("bool", bool):
-            values[f.name] = text == "1"
+            values[f.name] = parse_bool(text, f.name)
         elif f.type in ("int", int):
-            values[f.name] = int(text)
+            try:
+                values[f.name] = int(text)
+            except ValueError:
+                raise ValueError(f"{f.name}={text!r}, valid: an integer") from None
         elif f.type in ("float", float):
             values[f.name] = float(text)
         else:
@@ -144,17 +162,18 @@ def parse_result(row: dict[str, str]) -> EpisodeResult:
 
 
 def read_rows(path: Path) -> list[dict[str, str]]:
-    """The complete rows of an episodes.csv; a torn last line is dropped.
+    """The complete rows of an episodes.csv; a torn last line is dropped; none for a 0-byte file.
 
-    Raises :class:`StoreError` for a missing/empty file, a foreign header or a malformed row
-    before the last one.
+    Raises :class:`StoreError` for a missing file, a foreign header or a malformed row before the
+    last one.
     """
     try:
         text = path.read_text()
-    except OSError as e:
-        raise StoreError(f"{path}: cannot read ({e.strerror})") from e
-    if not text.strip():
-        raise StoreError(f"{path}: empty file, not an episodes.csv")
+    except (OSError, UnicodeDecodeError) as e:
+        reason = e.strerror if isinstance(e, OSError) else "not text"
+        raise StoreError(f"{path}: cannot read ({reason})") from e
+    if not text:
+        return []  # created, nothing written yet (e.g. a full disk): a fresh run
     lines = text.splitlines(keepends=True)
     if lines and not lines[-1].endswith("\n"):
         lines = lines[:-1]  # torn by an interrupted write
@@ -207,28 +226,17 @@ class EpisodeStore:
         if foreign:
             raise StoreError(
                 f"{path} holds episodes of another configuration (hash {sorted(foreign)[0]}, "
-                f"this run {config_hash}); choose another directory with hydra.run.dir=..."
+                f"this run {config_hash}); choose another hydra.run.dir (hydra.sweep.dir for -m)"
             )
         return rows
 
     def _rewrite(self, rows: list[dict[str, str]]) -> None:
-        tmp = self.path.with_suffix(".csv.tmp")
-        with open(tmp, "w") as f:
-            f.write(_line(list(CSV_COLUMNS)))
-            for row in rows:
-                f.write(_line([row.get(c, "nan") for c in CSV_COLUMNS]))
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, self.path)
+        lines = [_line(list(CSV_COLUMNS))]
+        lines += [_line([row.get(c, "nan") for c in CSV_COLUMNS]) for row in rows]
+        replace_durably(self.path, "".join(lines).encode())
 
     def append(self, result: EpisodeResult) -> None:
-        """Record ``result`` durably (one write, fsync)."""
+        """Record ``result`` durably: the whole row, fsynced, or :class:`WriteError` and no row."""
         values = [format_value(v) for v in result.as_row().values()]
-        data = _line([*values, self.config_hash, self.scene_hash]).encode()
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
-        try:
-            os.write(fd, data)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        append_durably(self.path, _line([*values, self.config_hash, self.scene_hash]).encode())
         self.done[result.env] = result

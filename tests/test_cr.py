@@ -19,7 +19,7 @@ import pytest
 from amex.config import RunConfig
 from amex.control.collision import CollisionModel
 from amex.episode import run_episode
-from amex.errors import ConfigError, SolverError
+from amex.errors import ConfigError, InputError, SolverError
 from amex.methods import CR, METHODS, CRConfig
 from amex.methods.base import Observation
 from amex.methods.cr import _resample
@@ -218,8 +218,11 @@ def test_non_finite_observation_raises_solver_error(context):
     cr = CR.from_plan(ctx.plan, scene(CRConfig()), DT, ctx.robot)
     q = ctx.plan.q[0].copy()
     q[3] = np.nan
-    obs = observe(config, 0.0, q, np.zeros(7))
+    with pytest.raises(InputError, match="non-finite q"):  # rejected where it enters
+        observe(config, 0.0, q, np.zeros(7))
+    obs = observe(config, 0.0, ctx.plan.q[0].copy(), np.zeros(7))
     cr.reset(obs)
+    obs.q[3] = np.nan  # changed after the observation's check: the solver refuses it too
     with pytest.raises(SolverError, match="non-finite q_start") as info:
         cr.step(obs)
     assert isinstance(info.value.problem, TrajectoryProblem)
@@ -239,7 +242,7 @@ def test_solver_failure_ends_the_episode_with_a_solver_reason(context):
     scenario = make_scenario(config.scenario, 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = _BlindAfterHalfASecond.from_plan(ctx.plan, scene(CRConfig()), DT, ctx.robot)
     result = run_episode(ctx.robot, method, scenario, config.gains(), config.loop)
-    assert result.failure.startswith("solver") and "non-finite goal_pos" in result.failure
+    assert result.failure.startswith("solver") and "non-finite goal" in result.failure
     assert not result.success
     assert result.final_time == pytest.approx(0.05)
 

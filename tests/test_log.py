@@ -334,6 +334,7 @@ def test_layout_points_the_urdf_layer_at_the_logs_urdf(logged, tmp_path):
     layout = json.loads(out.read_text())
     urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]
     assert urdf["layerId"] == "foxglove.Urdf" and Path(urdf["filePath"]).exists()
+    out = tmp_path / "ur5_layout.json"
     assert main(["layout", "--robot", "ur5", "-o", str(out)]) == 0  # no log: a catalogue robot
     layout = json.loads(out.read_text())
     urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]

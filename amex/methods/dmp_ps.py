@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -9,7 +10,7 @@ import numpy as np
 
 from amex.errors import ConfigError
 from amex.interfaces import Command
-from amex.methods.base import Observation
+from amex.methods.base import Observation, require_finite
 from amex.methods.dmp import DMP, DMPConfig, DMPTarget
 from amex.scaling import scaled
 
@@ -53,14 +54,19 @@ class DMPPhaseStop(DMP):
     def __init__(
         self, reference: np.ndarray, duration: float, dt: float, beta_ps: float = 1e3, **params: Any
     ) -> None:
-        if not beta_ps >= 0.0:
+        if not (math.isfinite(beta_ps) and beta_ps >= 0.0):
             raise ConfigError.invalid("beta_ps", beta_ps, ">= 0 [1/m^2]")
         super().__init__(reference, duration, dt, **params)
         self.beta_ps = float(beta_ps)
         self._err = np.empty(self.n_dims)
 
     def phase_rate(self, y: np.ndarray) -> float:
-        """Eq. 2's factor ``1 / (1 + beta_ps ||y* - y||^2)`` for the measured y, shape (m,)."""
+        """Eq. 2's factor ``1 / (1 + beta_ps ||y* - y||^2)`` for the measured y, shape (m,).
+
+        Raises:
+            InputError: y holds a NaN or an infinity.
+        """
+        require_finite(y=y)
         e = np.subtract(self._s.head[self._flip][0], y, out=self._err)
         return 1.0 / (1.0 + self.beta_ps * float(e @ e))
 
