@@ -34,20 +34,23 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from amex.argparsing import OneLineParser
 from amex.errors import AmexError
 from amex.store import HASH_COLUMNS, StoreError, parse_result, read_rows
+from analysis.comparisons import (  # noqa: F401 - bootstrap_ci: also analysis.table's API
+    METHOD_ORDER,
+    MIN_EPISODES,
+    bootstrap_ci,
+    claims,
+    method_rank,
+    paired,
+)
 from analysis.latex import fig5_latex
 
 HERE = Path(__file__).resolve().parent
 PAPER_CSV = HERE / "paper_fig5.csv"
-METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
-MIN_EPISODES = 30  # fewer environments per method: a claim is "too few", not holds / fails
-PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_t3")
-BOOTSTRAP = 10_000
 
 
 class TableError(AmexError):
@@ -86,6 +89,7 @@ def load_runs(root: Path) -> pd.DataFrame:
     if not frames:
         raise TableError(f"every episodes.csv under {root} is empty")
     df = pd.concat(frames, ignore_index=True)
+    df = df.drop_duplicates(subset=["scene_hash", "config_hash", "task", "method", "env"])
     for col in ("task", "env", "seed"):
         df[col] = df[col].astype(int)
     for col in ("success", "success_005", "collided"):
@@ -186,132 +190,6 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
 def paper_table() -> pd.DataFrame:
     """The paper's Fig. 5 as data."""
     return pd.read_csv(PAPER_CSV, comment="#")
-
-
-def bootstrap_ci(d: np.ndarray, seed: int = 0, n: int = BOOTSTRAP) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of the mean of ``d`` (seeded: reproducible)."""
-    rng = np.random.default_rng(seed)
-    means = rng.choice(d, size=(n, len(d)), replace=True).mean(axis=1)
-    lo, hi = np.percentile(means, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
-def method_rank(name: str) -> tuple[int, str]:
-    """Sort key: the paper's methods and ours in :data:`METHOD_ORDER`, then others by name."""
-    base = name.split("#")[0]
-    order = METHOD_ORDER.index(base) if base in METHOD_ORDER else len(METHOD_ORDER)
-    return order, name
-
-
-def paired(df: pd.DataFrame) -> pd.DataFrame:
-    """Paired comparisons (a minus b) of every two methods on the environments both ran."""
-    from scipy.stats import wilcoxon
-
-    records = []
-    for task in sorted(df.task.unique()):
-        sub = df[df.task == task]
-        methods = sorted(set(sub.method), key=method_rank)
-        for i, a in enumerate(methods):
-            for b in methods[i + 1 :]:
-                wide = sub[sub.method.isin([a, b])].pivot(index="env", columns="method")
-                wide = wide.dropna()
-                if len(wide) < 2:
-                    continue
-                for metric in PAIRED_METRICS:
-                    d = (wide[(metric, a)].astype(float) - wide[(metric, b)].astype(float))
-                    d = d.to_numpy()
-                    lo, hi = bootstrap_ci(d, seed=int(task))
-                    p = 1.0 if np.all(d == 0) else float(wilcoxon(d, zero_method="zsplit").pvalue)
-                    records.append(
-                        {
-                            "task": task,
-                            "a": a,
-                            "b": b,
-                            "metric": metric,
-                            "pairs": len(d),
-                            "mean_diff": float(d.mean()),
-                            "ci_low": lo,
-                            "ci_high": hi,
-                            "wilcoxon_p": p,
-                        }
-                    )
-    return pd.DataFrame.from_records(records)
-
-
-def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
-    """The paper's qualitative claims checked on our aggregates: (claim, verdict, evidence)."""
-    out: list[tuple[str, str, str]] = []
-    paper_methods = ("amex", "dmp", "cr")
-    have = set(ours.method)
-    tasks = sorted(t for t in ours.task.unique() if t >= 1)
-
-    def get(task: int, method: str, col: str) -> float:
-        row = ours[(ours.task == task) & (ours.method == method)]
-        return float(row[col].iloc[0]) if len(row) else math.nan
-
-    def verdict(name: str, needed: tuple[str, ...], test, fmt) -> None:
-        if not set(needed) <= have or not tasks:
-            missing = ", ".join(sorted(set(needed) - have)) or "tasks 1-4"
-            out.append((name, "n/a", f"needs {missing}"))
-            return
-        results = {t: test(t) for t in tasks}
-        ok = all(results.values())
-        evidence = "; ".join(f"task {t}: {fmt(t)}" for t in tasks)
-        n = min(int(get(t, m, "episodes")) for t in tasks for m in needed)
-        word = "holds" if ok else "fails"
-        if n < MIN_EPISODES:
-            word = f"too few (n = {n} < {MIN_EPISODES}); {word} so far"
-        out.append((name, word, evidence))
-
-    present = tuple(m for m in paper_methods if m in have)
-    verdict(
-        "all methods above 0.9 success",
-        present or paper_methods,
-        lambda t: all(get(t, m, "success") > 0.9 for m in present),
-        lambda t: ", ".join(f"{m} {get(t, m, 'success'):.2f}" for m in present),
-    )
-    for claim, col in (
-        ("CR is the smoothest (lowest sum of squared accelerations)", "sum_sq_acc_mean"),
-        (
-            "CR is the smoothest at equal duration (median sum sq. acc. x final time^3; "
-            "diagnostic)",
-            "sum_sq_acc_t3_median",
-        ),
-    ):
-        verdict(
-            claim,
-            paper_methods,
-            lambda t, c=col: get(t, "cr", c) < min(get(t, "amex", c), get(t, "dmp", c)),
-            lambda t, c=col: ", ".join(f"{m} {get(t, m, c):.3g}" for m in paper_methods),
-        )
-    verdict(
-        "AMEX is smoother than DMP",
-        ("amex", "dmp"),
-        lambda t: get(t, "amex", "sum_sq_acc_mean") < get(t, "dmp", "sum_sq_acc_mean"),
-        lambda t: (
-            f"amex {get(t, 'amex', 'sum_sq_acc_mean'):.3g} vs dmp "
-            f"{get(t, 'dmp', 'sum_sq_acc_mean'):.3g}"
-        ),
-    )
-    verdict(
-        "compute time CR >> AMEX > DMP (>> meaning 10x)",
-        paper_methods,
-        lambda t: (
-            get(t, "cr", "compute_time_mean") > 10 * get(t, "amex", "compute_time_mean")
-            and get(t, "amex", "compute_time_mean") > get(t, "dmp", "compute_time_mean")
-        ),
-        lambda t: ", ".join(f"{m} {get(t, m, 'compute_time_mean'):.2e}" for m in paper_methods),
-    )
-    verdict(
-        "AMEX's final time spreads more than CR's",
-        ("amex", "cr"),
-        lambda t: get(t, "amex", "final_time_2std") > get(t, "cr", "final_time_2std"),
-        lambda t: (
-            f"2 std amex {get(t, 'amex', 'final_time_2std'):.2f} s vs cr "
-            f"{get(t, 'cr', 'final_time_2std'):.2f} s"
-        ),
-    )
-    return out
 
 
 def _pm(mean: float, two_std: float, fmt: str) -> str:

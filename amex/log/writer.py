@@ -20,10 +20,15 @@ topic                schema                    content
 ``/tcp``             JSON                      TCP position, z-axis, velocity, distance to goal
 ``/goal``            JSON                      goal position and distance to it
 ``/command``         JSON                      the command: y*, y_dot* (and q*, q_dot* if any)
-``/method``          JSON                      the method's ``internals()`` (numbers, small lists)
-``/reference``       JSON                      the reference plan ``y`` and ``dt`` (once, t = 0)
+``/method``          JSON                      the method's ``internals()`` (numbers, flags, texts,
+                                               small number arrays; schema from the first step)
+``/reference``       JSON                      the reference plan: ``dt``, ``duration`` and
+                                               ``samples`` [{t, position, axis}] (once, t = 0)
 ``/episode``         JSON                      the episode's result (once, at the end)
 ==================== ========================= ==================================================
+
+Every JSON schema declares all the fields its messages carry, in the form browser viewers accept
+(:func:`amex.log.messages.viewer_schema_problems`: no arrays of arrays, every array has ``items``).
 
 MCAP metadata records: ``episode`` (the caller's metadata: task, method, env, seed, ...),
 ``scenario``, ``robot``, ``log`` (written first) and ``outcome`` (written last: the result, or
