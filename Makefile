@@ -29,7 +29,7 @@ test-slow: $(STAMP)
 
 ## Logs in a real browser viewer: Debian's chromium and Foxglove Studio 1.48 (npm), installed here
 ## if missing, open logged episodes headless; every topic listed, no player problems (~3 min).
-VIEWER := viewer
+VIEWER := tests/viewer
 $(VIEWER)/node_modules/.installed: $(VIEWER)/package.json $(VIEWER)/package-lock.json
 	@command -v chromium >/dev/null || { apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium; }

@@ -1,9 +1,9 @@
 """Logs open in a real browser viewer: Foxglove Studio 1.48 in headless Chromium (make test-viewer).
 
-``make test-viewer`` installs Debian's chromium and the npm packages of ``viewer/`` (Foxglove
+``make test-viewer`` installs Debian's chromium and the npm packages of ``tests/viewer/`` (Foxglove
 Studio 1.48's ``@foxglove/studio-base``, React 17, playwright-core), then runs these tests: a
 logged episode of each method is served by ``amex-log view``'s server and opened in the local
-Studio with its layout; ``viewer/check.mjs`` waits until every topic of the log is listed and
+Studio with its layout; ``tests/viewer/check.mjs`` waits until every topic of the log is listed and
 reads the player problems. Not in the default suite (it needs chromium and node packages).
 """
 

@@ -10,7 +10,7 @@ that the https web app may read from the local machine). It serves
 ``/robot/robot.urdf``     the log's robot, meshes rewritten to URLs (:mod:`amex.log.urdf`)
 ``/robot/meshes/...``     the meshes it uses
 ``/layout.json``          the layout for this log (:mod:`amex.log.layout`), URDF from above
-``/studio/...``           a local Foxglove Studio web build, if one is installed (``viewer/``)
+``/studio/...``           a local Foxglove Studio web build, if one is installed (``tests/viewer/``)
 ========================= ===========================================================
 
 and :func:`viewer_urls` gives the links that open them: Foxglove's web app with the log as a
@@ -36,7 +36,7 @@ from amex.log.urdf import viewer_urdf
 
 FOXGLOVE_APP = "https://app.foxglove.dev/"
 DEFAULT_PORT = 8765
-STUDIO_DIR = Path(__file__).resolve().parents[2] / "viewer"  # make test-viewer installs it
+STUDIO_DIR = Path(__file__).resolve().parents[2] / "tests" / "viewer"  # make test-viewer installs it
 _RANGE = re.compile(r"bytes=(\d*)-(\d*)$")
 
 
@@ -182,7 +182,7 @@ class LogServer:
         host: interface to listen on (default loopback only).
         port: TCP port; 0 picks a free one. The layout's URDF URL contains it.
         studio_dir: a Foxglove Studio web build to serve under ``/studio/`` (default
-            ``viewer/`` of this checkout, if ``make test-viewer`` installed it there).
+            ``tests/viewer/`` of this checkout, if ``make test-viewer`` installed it there).
     """
 
     def __init__(
