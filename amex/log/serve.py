@@ -36,7 +36,8 @@ from amex.log.urdf import viewer_urdf
 
 FOXGLOVE_APP = "https://app.foxglove.dev/"
 DEFAULT_PORT = 8765
-STUDIO_DIR = Path(__file__).resolve().parents[2] / "tests" / "viewer"  # make test-viewer installs it
+# make test-viewer installs it
+STUDIO_DIR = Path(__file__).resolve().parents[2] / "tests" / "viewer"
 _RANGE = re.compile(r"bytes=(\d*)-(\d*)$")
 
 
