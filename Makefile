@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-viewer render-deps lint bench table figures studies paper ablation clean
+.PHONY: install run test test-slow test-viewer render-deps lint bench table figures studies paper ablation ablation-table clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -58,6 +58,15 @@ bench: $(STAMP)
 ## The paper's Fig. 5 from every episodes.csv under $(RUNS), into analysis/out/.
 table: $(STAMP)
 	$(BIN)/python -m analysis.table $(RUNS)
+	@if [ -d runs/paper_original ] && [ -d runs/paper ]; then \
+	  $(BIN)/python -m analysis.compare original=runs/paper_original ours=runs/paper; \
+	else echo "(make paper and make paper EXPERIMENT=original give the side-by-side analysis/out/compare.md)"; fi
+
+## The ablation's steps side by side (analysis/out/ablation.md), after make ablation and make paper.
+ablation-table: $(STAMP)
+	$(BIN)/python -m analysis.compare --name ablation.md original=runs/paper_original \
+	  1_harness=$(ABLATION_DIR)/1_harness 2_controller=$(ABLATION_DIR)/2_controller \
+	  3_methods=$(ABLATION_DIR)/3_methods 4_dynamic=$(ABLATION_DIR)/4_dynamic ours=runs/paper
 
 ## Fig. 5 as plots from the runs under $(RUNS), then Fig. 2 (from AMEX itself), Fig. 4 and Fig. 6
 ## analogues, into analysis/out/ (PNG and PDF).

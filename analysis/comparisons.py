@@ -16,7 +16,7 @@ import pandas as pd
 
 METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
 MIN_EPISODES = 30  # fewer environments per method: a claim is "too few", not holds / fails
-PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_t3")
+PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_paper", "sum_sq_acc_t3")
 BOOTSTRAP = 10_000
 
 
@@ -49,7 +49,7 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
                 wide = wide.dropna()
                 if len(wide) < 2:
                     continue
-                for metric in PAIRED_METRICS:
+                for metric in (m for m in PAIRED_METRICS if m in sub):
                     d = (wide[(metric, a)].astype(float) - wide[(metric, b)].astype(float))
                     d = d.to_numpy()
                     lo, hi = bootstrap_ci(d, seed=int(task))
@@ -70,8 +70,16 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_records(records)
 
 
-def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
-    """The paper's qualitative claims checked on our aggregates: (claim, verdict, evidence)."""
+def claims(
+    ours: pd.DataFrame, smoothness: str = "sum_sq_acc_mean", success: str = "success"
+) -> list[tuple[str, str, str]]:
+    """The paper's qualitative claims checked on our aggregates: (claim, verdict, evidence).
+
+    ``smoothness`` is the column the two smoothness claims compare: ``sum_sq_acc_mean`` (exact)
+    or ``sum_sq_acc_paper_mean`` (as the authors computed it, rounding noise included);
+    ``success`` the success rate the first claim reads (``success_005``: at 0.05 m, as they
+    counted it).
+    """
     out: list[tuple[str, str, str]] = []
     paper_methods = ("amex", "dmp", "cr")
     have = set(ours.method)
@@ -99,11 +107,12 @@ def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
     verdict(
         "all methods above 0.9 success",
         present or paper_methods,
-        lambda t: all(get(t, m, "success") > 0.9 for m in present),
-        lambda t: ", ".join(f"{m} {get(t, m, 'success'):.2f}" for m in present),
+        lambda t: all(get(t, m, success) > 0.9 for m in present),
+        lambda t: ", ".join(f"{m} {get(t, m, success):.2f}" for m in present),
     )
+    label = "as the paper computed it" if "paper" in smoothness else "exact"
     for claim, col in (
-        ("CR is the smoothest (lowest sum of squared accelerations)", "sum_sq_acc_mean"),
+        (f"CR is the smoothest (lowest sum of squared accelerations, {label})", smoothness),
         (
             "CR is the smoothest at equal duration (median sum sq. acc. x final time^3; "
             "diagnostic)",
@@ -117,13 +126,10 @@ def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
             lambda t, c=col: ", ".join(f"{m} {get(t, m, c):.3g}" for m in paper_methods),
         )
     verdict(
-        "AMEX is smoother than DMP",
+        f"AMEX is smoother than DMP ({label})",
         ("amex", "dmp"),
-        lambda t: get(t, "amex", "sum_sq_acc_mean") < get(t, "dmp", "sum_sq_acc_mean"),
-        lambda t: (
-            f"amex {get(t, 'amex', 'sum_sq_acc_mean'):.3g} vs dmp "
-            f"{get(t, 'dmp', 'sum_sq_acc_mean'):.3g}"
-        ),
+        lambda t: get(t, "amex", smoothness) < get(t, "dmp", smoothness),
+        lambda t: f"amex {get(t, 'amex', smoothness):.3g} vs dmp {get(t, 'dmp', smoothness):.3g}",
     )
     verdict(
         "compute time CR >> AMEX > DMP (>> meaning 10x)",

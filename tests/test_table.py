@@ -35,7 +35,7 @@ def test_claims_judged_on_fewer_than_30_environments_are_marked_too_few(runs, tm
     assert main([str(runs), "--out", str(tmp_path)]) == 0
     md = (tmp_path / "fig5.md").read_text()
     claims = md.split("## The paper's claims")[1]
-    assert "| AMEX is smoother than DMP | too few (n = 3 < 30);" in claims
+    assert "| AMEX is smoother than DMP (exact) | too few (n = 3 < 30);" in claims
     assert "| holds |" not in claims and "| fails |" not in claims
 
 
@@ -173,3 +173,26 @@ def test_an_unknown_option_is_one_line_and_exit_2(capsys):
     assert info.value.code == 2
     assert err.startswith("make table: error: unrecognized arguments: --bogus")
     assert err.count("\n") == 1
+
+
+def test_compare_sets_benchmarks_beside_the_paper_and_checks_the_claims_on_each(runs, tmp_path):
+    from analysis.compare import main as compare
+
+    assert compare([f"a={runs}", f"b={runs}", "--out", str(tmp_path)]) == 0
+    md = (tmp_path / "compare.md").read_text()
+    assert "| final time [s]: paper | final time [s]: a | final time [s]: b |" in md
+    assert "| 1 | amex | 1.00 |" in md  # the paper's Task-1 AMEX success first
+    claims = md.split("## The paper's claims on each")[1]
+    assert "| claim | paper | a (as the paper computed) | a (exact) | b (as" in claims
+    assert "| AMEX is smoother than DMP | holds |" in claims  # on the paper's own numbers
+
+
+def test_compare_refuses_a_bad_benchmark_argument(tmp_path, capsys):
+    from analysis.compare import main as compare
+
+    with pytest.raises(SystemExit) as info:
+        compare(["nonsense", "--out", str(tmp_path)])
+    assert info.value.code == 2
+    assert "LABEL=DIR" in capsys.readouterr().err
+    assert compare([f"x={tmp_path / 'missing'}", "--out", str(tmp_path)]) == 2
+    assert not (tmp_path / "compare.md").exists()
