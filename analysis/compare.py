@@ -85,8 +85,8 @@ def numbers(frames: dict[str, pd.DataFrame]) -> str:
             for _, col, fmt in measures:
                 for label in labels:
                     df = frames[label]
-                    if label == "paper" and col in ("success_005", "sum_sq_acc_mean"):
-                        # the paper counted success at 0.05 m and had only its own computation
+                    if label == "paper" and col in ("success", "success_005", "sum_sq_acc_mean"):
+                        # the paper's success was counted at 0.05 m; its sums as it computed them
                         col_here = "success" if col == "success_005" else ""
                         cells.append(_cell(df, task, method, col_here, fmt) if col_here else "")
                     else:
