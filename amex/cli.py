@@ -13,21 +13,21 @@ the whole sweep, workers included, and say that the same command resumes. Only t
 from __future__ import annotations
 
 import os
+import time
+
+STARTED = time.perf_counter()  # the command's start, for the sweep's closing line
 
 # One BLAS/OpenMP thread per process: episodes are tiny linear algebra, and sweeps run one job
 # per core. Set before numpy is imported anywhere.
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import contextlib  # noqa: E402
-import itertools  # noqa: E402
+import dataclasses  # noqa: E402
 import logging  # noqa: E402
 import re  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
-
-from hydra.experimental.callback import Callback  # noqa: E402
 
 CONF_DIR = str(Path(__file__).resolve().parent.parent / "conf")
 PROG = "amex-run"
@@ -37,6 +37,25 @@ _OUTPUT: dict[str, Path] = {}
 
 class UsageError(Exception):
     """A bad command line; the message is the one line shown to the user."""
+
+
+def shard_suffix(shard: Any, shards: Any) -> str:
+    """``${amex.shard:${shard},${shards}}`` in directory names: ``_shard2of7``, or nothing."""
+    try:
+        count = int(shards)
+    except (TypeError, ValueError):
+        return f"_shard{shard}of{shards}"
+    return f"_shard{shard}of{count}" if count != 1 else ""
+
+
+def _register_resolvers() -> None:
+    from omegaconf import OmegaConf
+
+    if not OmegaConf.has_resolver("amex.shard"):
+        OmegaConf.register_new_resolver("amex.shard", shard_suffix)
+
+
+_register_resolvers()  # also in sweep workers, which import this module to run a job
 
 
 def _register_schemas() -> None:
@@ -90,26 +109,38 @@ def explain(error: Exception, overrides: list[str] | None = None) -> str:
     return first
 
 
-def _sweep_combinations(overrides: list[str]) -> list[list[str]]:
-    """Expand ``-m`` sweep overrides into the list of single-run override lists."""
+def _parse(overrides: list[str]) -> list[Any]:
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     try:
-        parsed = OverridesParser.create().parse_overrides(overrides)
+        return OverridesParser.create().parse_overrides(overrides)
     except Exception as e:  # Hydra's OverrideParseException and friends
         raise UsageError(f"invalid override: {explain(e, overrides)}") from e
-    choices: list[list[str]] = []
-    for o in parsed:
-        if o.is_hydra_override():
-            continue
-        key = o.key_or_group
-        line = o.input_line or f"{key}={o.get_value_element_as_str()}"
-        prefix = "+" if line.startswith("+") else ""
-        if o.is_sweep_override():
-            choices.append([f"{prefix}{key}={v}" for v in o.sweep_string_iterator()])
-        else:
-            choices.append([line])
-    return [list(c) for c in itertools.product(*choices)] if choices else [[]]
+
+
+def command_line_jobs(overrides: list[str], multirun: bool) -> tuple[list[list[str]], list[str]]:
+    """The jobs the command line describes (one unless ``multirun``) and its ``hydra.*`` part.
+
+    A sweep's jobs are those its sweeper launches (:func:`amex.sweeps.sweep_jobs`): the command
+    line's and ``hydra.sweeper.params``'s product, ``hydra.sweeper.grids``, every shard.
+    """
+    from amex.launch import LaunchError, sweep_settings
+    from amex.sweeps import sweep_jobs
+
+    parsed = _parse(overrides)
+    hydra_overrides = [o.input_line for o in parsed if o.is_hydra_override() and o.input_line]
+    task = [o.input_line for o in parsed if not o.is_hydra_override() and o.input_line]
+    if not multirun:
+        return [task], hydra_overrides
+    fixed = [o.input_line for o in parsed if not (o.is_hydra_override() or o.is_sweep_override())]
+    try:
+        params, grids, shards = sweep_settings(fixed, hydra_overrides)
+    except LaunchError as e:
+        raise UsageError(str(e)) from e
+    try:
+        return sweep_jobs(params, grids, task, shards), hydra_overrides
+    except Exception as e:  # a bad value in hydra.sweeper.params or grids
+        raise UsageError(f"invalid sweep: {explain(e, overrides)}") from e
 
 
 def load_config(overrides: list[str]) -> Any:
@@ -144,12 +175,16 @@ def load_config(overrides: list[str]) -> Any:
 
 
 def _validate_command_line(argv: list[str]) -> None:
-    """Compose and validate every run the command line describes, or raise :class:`UsageError`."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
+    """Compose and validate every run the command line describes, or raise :class:`UsageError`.
 
+    The jobs of one cell that differ only in ``shard`` share one check of their configuration;
+    every job's directory must be its own (a subdir without ``${amex.shard:...}`` is refused).
+    """
     from amex.errors import ConfigError
     from amex.launch import LaunchError, check_launch
     from amex.runner import preflight
+    from amex.shards import ShardSpec
+    from amex.sweeps import job_value
 
     flags_with_value = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd"}
     overrides: list[str] = []
@@ -165,16 +200,45 @@ def _validate_command_line(argv: list[str]) -> None:
             continue
         overrides.append(arg)
     multirun = "-m" in argv or "--multirun" in argv
-    parsed = OverridesParser.create().parse_overrides(overrides)
-    hydra_overrides = [o.input_line for o in parsed if o.is_hydra_override() and o.input_line]
-    for combo in _sweep_combinations(overrides):
+    jobs, hydra_overrides = command_line_jobs(overrides, multirun)
+    checked: dict[tuple[str, ...], Any] = {}
+    owners: dict[Path, list[str]] = {}
+    for job in jobs:
+        cell = tuple(o for o in job if o.split("=", 1)[0].lstrip("+") != "shard")
         try:
-            config = load_config(combo)
-            preflight(config)
-            job_dir = check_launch(combo, hydra_overrides, multirun)
+            if cell not in checked:
+                config = load_config(job)
+                preflight(config)
+                job_dir = check_launch(job, hydra_overrides, multirun, check_dir=not checked)
+                checked[cell] = (config, job_dir)
+            else:  # another shard of a checked cell: its range and its directory
+                first, first_dir = checked[cell]
+                shard = int(job_value(job, "shard"))
+                ShardSpec(shard, first.shards, first.episodes)
+                config = dataclasses.replace(first, shard=shard)
+                job_dir = _shard_dir(first_dir, first, shard) or check_launch(
+                    job, hydra_overrides, multirun, check_dir=False
+                )
         except (ConfigError, LaunchError) as e:
             raise UsageError(str(e)) from e
+        except (TypeError, ValueError) as e:
+            raise UsageError(f"invalid shard in {' '.join(job)}; valid: an integer") from e
+        if job_dir in owners:
+            raise UsageError(
+                f"two jobs of the sweep write into {job_dir} ({' '.join(owners[job_dir])} and "
+                f"{' '.join(job)}); valid: a hydra.sweep.subdir that tells them apart "
+                "(with ${amex.shard:${shard},${shards}} for shards)"
+            )
+        owners[job_dir] = job
         _check_resumable(job_dir, config)
+
+
+def _shard_dir(first_dir: Path, first: Any, shard: int) -> Path | None:
+    """Shard ``shard``'s directory from the one of the cell's first checked shard, if named so."""
+    suffix = shard_suffix(first.shard, first.shards)
+    if not suffix or suffix not in first_dir.name:
+        return None
+    return first_dir.with_name(first_dir.name.replace(suffix, shard_suffix(shard, first.shards)))
 
 
 def _check_resumable(run_dir: Path, config: Any) -> None:
@@ -188,64 +252,6 @@ def _check_resumable(run_dir: Path, config: Any) -> None:
         EpisodeStore.check(path, config_hash(config))
     except StoreError as e:
         raise UsageError(str(e)) from e
-
-
-_OUTPUT_CALLBACKS: list[SweepProgress] = []
-
-
-class SweepProgress(Callback):
-    """Hydra callback: one progress bar for a whole ``-m`` sweep, in the launching process.
-
-    Jobs run in worker processes (joblib) or on other machines (SLURM); this callback only counts
-    the rows that appear in the sweep's ``*/episodes.csv`` files, every half second.
-    """
-
-    def __init__(self) -> None:
-        self._stop: Any = None
-        self._thread: Any = None
-
-    def __getstate__(self) -> dict[str, Any]:
-        """Pickle without the thread: Hydra ships its callbacks to every joblib worker."""
-        return {"_stop": None, "_thread": None}
-
-    def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
-        """Start the polling thread for the sweep directory."""
-        import threading
-
-        self._stop = threading.Event()
-        sweep_dir = Path(str(config.hydra.sweep.dir))
-        _OUTPUT["dir"] = sweep_dir
-        _OUTPUT_CALLBACKS.append(self)
-        overrides = [str(o) for o in config.hydra.overrides.task]
-        total = 0
-        for combo in _sweep_combinations(overrides):
-            episodes = [o.split("=", 1)[1] for o in combo if o.startswith("episodes=")]
-            total += int(episodes[-1]) if episodes else int(config.episodes)
-        self._thread = threading.Thread(
-            target=self._poll, args=(sweep_dir, total), name="amex-sweep-progress", daemon=True
-        )
-        self._thread.start()
-
-    def _poll(self, sweep_dir: Path, total: int) -> None:
-        from tqdm import tqdm
-
-        with tqdm(total=total, desc=f"sweep {sweep_dir.name}", unit="ep", file=sys.stderr) as bar:
-            while True:
-                stopping = self._stop.wait(0.5)
-                done = 0
-                for path in sweep_dir.glob("*/episodes.csv"):
-                    with contextlib.suppress(OSError):  # a file being replaced
-                        done += max(path.read_bytes().count(b"\n") - 1, 0)
-                bar.update(min(done, total) - bar.n)
-                if stopping:
-                    return
-
-    def on_multirun_end(self, config: Any, **kwargs: Any) -> None:
-        """Final count, then stop the thread."""
-        if self._stop is not None:
-            self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
 
 
 def _fail(message: str) -> None:
@@ -264,7 +270,7 @@ def _kept_episodes(run_dir: Path, config: Any) -> int:
         rows = EpisodeStore.check(path, config_hash(config))
     except StoreError:
         return 0  # the run itself reports it
-    return len({int(r["env"]) for r in rows} & set(range(config.episodes)))
+    return len({int(r["env"]) for r in rows} & set(config.envs))
 
 
 def _task(cfg: Any) -> None:
@@ -283,7 +289,9 @@ def _task(cfg: Any) -> None:
     hydra_config = HydraConfig.get()
     run_dir = Path(hydra_config.runtime.output_dir)
     label = f"task {config.task} {config.method.name}"
-    episodes = config.episodes
+    if config.shards > 1:
+        label += f" shard {config.shard}/{config.shards}"
+    episodes = len(config.envs)
     quiet = hydra_config.mode == RunMode.MULTIRUN  # the sweep has one bar (SweepProgress)
     _OUTPUT.setdefault("dir", run_dir)
     if quiet:  # no tqdm in sweep workers: its lock is a semaphore, which a killed worker leaks
@@ -363,6 +371,8 @@ def run_main() -> None:
         sys.stdout.write(help_text(Path(CONF_DIR), PROG))
         return
     informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
+    from amex.sweep_progress import SWEEPS
+
     try:
         with signals_raise():
             if not informational.intersection(argv):
@@ -384,8 +394,8 @@ def run_main() -> None:
     except (JobFailed, KeyboardInterrupt, Exception) as e:
         if debug:
             raise
-        for callback in _OUTPUT_CALLBACKS:  # stop the sweep's progress bar before the last line
-            callback.on_multirun_end(None)
+        for callback in SWEEPS:  # stop the sweep's progress bar before the last line
+            callback.stop()
         line, code = _closing_line(e)
         print(line, file=sys.stderr, flush=True)
         raise SystemExit(code) from None

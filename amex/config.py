@@ -22,6 +22,7 @@ from amex.robot import RobotConfig, load_robot
 from amex.scaling import scale_power, scale_value, scaled, to_scene_units
 from amex.scenario import TASKS, ScenarioConfig
 from amex.schema import check_tree
+from amex.shards import ShardSpec, shard_envs
 
 LOG_LEVELS = ("none", "full")
 MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
@@ -77,6 +78,9 @@ class RunConfig:
         implementation: ``ours`` or ``original``: amex, dmp and cr as the authors' harness ran
             them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
         log: ``none`` or ``full`` (one MCAP file per episode).
+        shards: split the ``episodes`` environments over this many runs (:mod:`amex.shards`).
+        shard: which of them this run executes, ``0 <= shard < shards``: the environments
+            ``shard, shard + shards, ...``.
         perception: goal noise and latency (default exact).
         prediction: constant-velocity Kalman prediction of the goal (default off).
         mismatch: simulated arm versus the controller's model (default identical).
@@ -102,6 +106,13 @@ class RunConfig:
     state_lag: bool = False
     implementation: str = "ours"
     log: str = "none"
+    shards: int = 1
+    shard: int = 0
+
+    @property
+    def envs(self) -> range:
+        """The environments this run executes (all ``episodes`` unless sharded)."""
+        return shard_envs(self.episodes, self.shards, self.shard)
 
     @property
     def loop(self) -> LoopConfig:
@@ -155,6 +166,7 @@ def validate(config: RunConfig) -> None:
     check_tree(config)
     if config.episodes < 1:
         raise ConfigError.invalid("episodes", config.episodes, "an integer >= 1")
+    ShardSpec(config.shard, config.shards, config.episodes)  # raises for a bad split
     if config.log not in LOG_LEVELS:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
     if config.implementation not in IMPLEMENTATIONS:

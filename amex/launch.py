@@ -133,10 +133,13 @@ def check_output_dir(key: str, path: Path) -> None:
             )
 
 
-def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: bool) -> Path:
-    """Compose a job's Hydra config, check its launcher and output directory; return the latter.
+def check_launch(
+    overrides: list[str], hydra_overrides: list[str], multirun: bool, check_dir: bool = True
+) -> Path:
+    """Compose a job's Hydra config, check its launcher and output directory; return the job's.
 
-    For a sweep (``multirun``) that is ``hydra.sweep.dir / hydra.sweep.subdir``.
+    For a sweep (``multirun``) that is ``hydra.sweep.dir / hydra.sweep.subdir``. ``check_dir``:
+    check the launcher and the (sweep) directory, once per sweep.
     """
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
@@ -166,11 +169,46 @@ def check_launch(overrides: list[str], hydra_overrides: list[str], multirun: boo
         GlobalHydra.instance().clear()
     if not chosen.strip():
         raise LaunchError(f"invalid {key}=''; valid: a directory path (runs/mine, /data/run1, ...)")
+    if not check_dir:
+        return job
     launcher = hydra_cfg.get("launcher") or {}
     if multirun and str(launcher.get("_target_", "")).endswith("JoblibLauncher"):
         _check_joblib(launcher)
     check_output_dir(key, directory)
     return job
+
+
+def sweep_settings(
+    overrides: list[str], hydra_overrides: list[str]
+) -> tuple[dict[str, Any], dict[str, Any] | None, int]:
+    """``hydra.sweeper.params``, ``hydra.sweeper.grids`` and ``shards`` of a sweep's config.
+
+    Composed from the command line's fixed (non-sweep) ``overrides``, e.g. ``+study=...``.
+    """
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.utils import setup_globals
+    from omegaconf import OmegaConf
+
+    from amex.cli import CONF_DIR, _register_schemas, explain
+
+    setup_globals()
+    _register_schemas()
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            cfg = compose(
+                config_name="config",
+                overrides=[*overrides, *hydra_overrides],
+                return_hydra_config=True,
+            )
+        sweeper: Any = OmegaConf.to_container(cfg.hydra.sweeper, resolve=False)
+        shards = int(cfg.get("shards") or 1)
+    except Exception as e:  # Hydra and OmegaConf raise many types for bad input
+        raise LaunchError(explain(e, overrides + hydra_overrides)) from e
+    finally:
+        GlobalHydra.instance().clear()
+    return sweeper.get("params") or {}, sweeper.get("grids"), shards
 
 
 @contextlib.contextmanager

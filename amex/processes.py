@@ -107,3 +107,44 @@ def count_rows(directory: Path | None) -> int:
         with contextlib.suppress(OSError):
             total += max(path.read_bytes().count(b"\n") - 1, 0)
     return total
+
+
+def _proc_stat(pid: int | str) -> list[str] | None:
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return text.rsplit(")", 1)[1].split()  # fields from 3 (state) on; the name may hold spaces
+
+
+def tree_cpu_time() -> float:
+    """CPU time [s] of this process and every process it started, finished or still running.
+
+    This process and its waited-for children from ``getrusage``; the children and grandchildren
+    still running (a sweep's joblib workers) from ``/proc/<pid>/stat`` (user + system time, and
+    that of their own waited-for children). Without ``/proc``, the first part only.
+    """
+    import resource
+
+    total = 0.0
+    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
+        usage = resource.getrusage(who)
+        total += usage.ru_utime + usage.ru_stime
+    proc = Path("/proc")
+    if not proc.is_dir():
+        return total
+    stats = {}
+    for entry in proc.iterdir():
+        if entry.name.isdigit():
+            fields = _proc_stat(entry.name)
+            if fields is not None:
+                stats[int(entry.name)] = fields
+    tick = os.sysconf("SC_CLK_TCK")
+    frontier, seen = {os.getpid()}, set()
+    while frontier:
+        children = {p for p, f in stats.items() if int(f[1]) in frontier and p not in seen}
+        seen |= children
+        frontier = children
+    for pid in seen:  # fields 14-17: utime, stime, cutime, cstime (here at indices 11-14)
+        total += sum(int(x) for x in stats[pid][11:15]) / tick
+    return total

@@ -2,9 +2,11 @@
 
 Writes into the run directory ``episodes.csv`` (one row per episode, appended durably as each
 episode ends; see :mod:`amex.store`) and ``summary.json`` (the aggregates of the requested
-episodes, replaced atomically at the end; removed when a run starts, so it never describes an
-earlier run). No Hydra here: :func:`run` takes a :class:`~amex.config.RunConfig` and a directory,
-so scripts can call it directly. Everything is checked before anything is written
+episodes and the run's own wall and CPU time, replaced atomically at the end; removed when a run
+starts, so it never describes an earlier run); a sharded run (``shards > 1``) executes only its
+share of the environments and says which in ``shard.json`` (:mod:`amex.shards`). No Hydra
+here: :func:`run` takes a :class:`~amex.config.RunConfig` and a directory, so scripts can call
+it directly. Everything is checked before anything is written
 (:func:`preflight`), and the directory is locked while the run writes
 (:class:`~amex.durable.RunLock`): a second run into it is refused.
 """
@@ -14,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,6 +36,7 @@ from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
 from amex.scenario import make_scenario, plan_goal
 from amex.schema import field_names
+from amex.shards import ShardSpec, write_spec
 from amex.store import EpisodeStore, config_hash, scene_hash
 
 log = logging.getLogger(__name__)
@@ -165,23 +169,30 @@ def run(
 def _run_locked(
     config: RunConfig, run_dir: Path, progress: Callable[[int, EpisodeResult], None] | None
 ) -> dict:
+    started = time.perf_counter(), time.process_time()
     store = EpisodeStore(run_dir / EPISODES_CSV, config_hash(config), scene_hash(config))
     with contextlib.suppress(OSError):  # from an earlier run; written anew at the end
         (run_dir / SUMMARY_JSON).unlink()
+    envs = config.envs
+    if config.shards > 1:
+        write_spec(run_dir, ShardSpec(config.shard, config.shards, config.episodes))
     for env in sorted(store.done):
-        if env < config.episodes and progress is not None:
+        if env in envs and progress is not None:
             progress(env, store.done[env])
-    todo = [env for env in range(config.episodes) if env not in store.done]
+    todo = [env for env in envs if env not in store.done]
     log.info(
-        "task %d %s, %d episodes into %s (config hash %s, scene hash %s); %d recorded earlier, "
+        "task %d %s, %d episodes%s into %s (config hash %s, scene hash %s); %d recorded earlier, "
         "%d to run",
         config.task,
         config.method.name,
-        config.episodes,
+        len(envs),
+        f" (shard {config.shard} of {config.shards} of {config.episodes})"
+        if config.shards > 1
+        else "",
         run_dir,
         store.config_hash,
         store.scene_hash,
-        config.episodes - len(todo),
+        len(envs) - len(todo),
         len(todo),
     )
     if todo:
@@ -204,7 +215,7 @@ def _run_locked(
         )
         if progress is not None:
             progress(env, result)
-    results = [store.done[env] for env in range(config.episodes)]
+    results = [store.done[env] for env in envs]
     summary = summarize(results)
     summary.update(
         {
@@ -215,7 +226,12 @@ def _run_locked(
             "scene_hash": store.scene_hash,
         }
     )
+    if config.shards > 1:
+        summary.update({"shard": config.shard, "shards": config.shards})
     summary["recorded"] = len(store.done)  # rows in episodes.csv, >= episodes after a shorter rerun
+    # this run's own cost (the episodes it ran, not those kept): what a sweep reports at its end
+    summary["wall_time"] = time.perf_counter() - started[0]
+    summary["cpu_time"] = time.process_time() - started[1]
     replace_durably(run_dir / SUMMARY_JSON, (json.dumps(summary, indent=2) + "\n").encode())
     log.info(
         "done: success %.3f, final time %.2f +- %.2f s, %d failures; wrote %s",

@@ -3,7 +3,8 @@
 Every row carries two hashes of the configuration that produced it:
 
 * ``config_hash``: everything that determines the episode (task, method and its parameters, scenes,
-  plan, controller, rates, seed, code version), not ``episodes`` or ``log``. A run resumes by
+  plan, controller, rates, seed, code version), not ``episodes``, ``log``, ``shards`` or
+  ``shard`` (which environments a run executes, not what they compute). A run resumes by
   skipping the environments already recorded under the same hash. The method's parameters are
   hashed in the scene's units (:mod:`amex.scaling`) and the robot's start pose as resolved from
   the catalogue, so a value written another way hashes the same. An option added later is left
@@ -35,7 +36,7 @@ from amex.metrics import COLUMNS, REQUIRED_COLUMNS, EpisodeResult
 
 HASH_COLUMNS = ("config_hash", "scene_hash")
 CSV_COLUMNS = COLUMNS + HASH_COLUMNS
-_NOT_RESULTS = ("episodes", "log")
+_NOT_RESULTS = ("episodes", "log", "shards", "shard")  # which rows, not what they hold
 # Options added after runs were recorded, with the value that reproduces the behaviour before
 # them: at that value they are left out of the hashes, so adding an option does not orphan
 # existing runs (they resume and tabulate as before); any other value is hashed as usual.

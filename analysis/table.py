@@ -17,6 +17,9 @@ them, with the command-line overrides that set them apart):
   when judged on fewer than :data:`MIN_EPISODES` environments per method), plus one diagnostic:
   smoothness at equal duration (:func:`duration_invariant_smoothness`).
 
+The shards of a cell (``shards=K shard=I``, :mod:`amex.shards`) are merged into one row; shards
+that overlap or leave environments out are refused with one line naming them.
+
 A (task, method) run with two method configurations in one group (e.g. two values of a method
 parameter) appears as two rows, ``method#<config hash>``. Errors (no runs, a corrupt or
 truncated csv) print one line naming the file and exit with code 2; the outputs are replaced
@@ -38,6 +41,7 @@ import pandas as pd
 
 from amex.argparsing import OneLineParser
 from amex.errors import AmexError
+from amex.shards import ShardError, check_cover, read_spec
 from amex.store import HASH_COLUMNS, StoreError, parse_result, read_rows
 from analysis.comparisons import (  # noqa: F401 - bootstrap_ci: also analysis.table's API
     METHOD_ORDER,
@@ -89,6 +93,9 @@ def load_runs(root: Path) -> pd.DataFrame:
     if not frames:
         raise TableError(f"every episodes.csv under {root} is empty")
     df = pd.concat(frames, ignore_index=True)
+    check_shards(df)
+    # environment order within a cell, whichever shard ran it: means add up in the same order
+    df = df.sort_values("env", kind="stable", ignore_index=True)
     df = df.drop_duplicates(subset=["scene_hash", "config_hash", "task", "method", "env"])
     for col in ("task", "env", "seed"):
         df[col] = df[col].astype(int)
@@ -106,6 +113,25 @@ def load_runs(root: Path) -> pd.DataFrame:
         df[col] = df[col].astype(float)
     df["sum_sq_acc_t3"] = duration_invariant_smoothness(df.sum_sq_acc, df.final_time)
     return df
+
+
+def check_shards(df: pd.DataFrame) -> None:
+    """Refuse shards of one configuration that overlap or leave gaps (:mod:`amex.shards`).
+
+    ``df`` holds the rows with their ``file``; the shard of each file is its ``shard.json``.
+    """
+    for (config, task, method), g in df.groupby(["config_hash", "task", "method"], sort=False):
+        files = {}
+        for file, rows in g.groupby("file", sort=True):
+            try:
+                spec = read_spec(Path(str(file)).parent)
+            except ShardError as e:
+                raise TableError(str(e)) from e
+            files[str(Path(str(file)).parent)] = (spec, {int(e) for e in rows.env})
+        try:
+            check_cover(f"task {task} {method} (config {str(config)[:8]})", files)
+        except ShardError as e:
+            raise TableError(str(e)) from e
 
 
 def _overrides(files: list[str]) -> tuple[str, ...]:
