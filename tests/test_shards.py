@@ -1,4 +1,4 @@
-"""Sharded runs: a cell split over jobs gives the same rows; the table merges them or says why not."""
+"""Sharded runs: a split cell gives the same rows; the table merges them or says why not."""
 
 import csv
 import os
