@@ -75,10 +75,10 @@ def _wait_for_rows(directory: Path, count: int, proc, timeout: float = 240.0) ->
     raise AssertionError(f"fewer than {count} rows after {timeout} s")
 
 
-def _stop_sweep(tmp_path, how):
+def _stop_sweep(tmp_path, how, args=SWEEP):
     """Start a sweep, stop it ``how`` once both jobs wrote rows; (proc, workers, stderr)."""
     sweep = tmp_path / "sweep"
-    proc = _start([*SWEEP, f"hydra.sweep.dir={sweep}"], tmp_path)
+    proc = _start([*args, f"hydra.sweep.dir={sweep}"], tmp_path)
     _wait_for_rows(sweep, 2, proc)
     workers = _children(proc.pid)
     assert len(workers) >= 2, workers
@@ -114,6 +114,25 @@ def test_ctrl_c_on_a_sweep_prints_one_line_without_traceback_or_leaks(tmp_path):
     proc, stderr = _stop_sweep(tmp_path, lambda p: os.killpg(p.pid, signal.SIGINT))
     assert proc.returncode == 128 + signal.SIGINT
     _closing_line_is_clean(stderr, "SIGINT")
+
+
+def test_sigterm_to_a_sharded_sweep_stops_every_worker_and_the_same_command_finishes_it(tmp_path):
+    args = ["-m", "task=1", "method=dmp", "episodes=12", "shards=4", "max_time=3"]
+    proc, stderr = _stop_sweep(tmp_path, lambda p: os.kill(p.pid, signal.SIGTERM), args)
+    assert proc.returncode == 128 + signal.SIGTERM
+    _closing_line_is_clean(stderr, "SIGTERM")
+    sweep = tmp_path / "sweep"
+    kept = {p: read_rows(p) for p in sweep.glob("*/episodes.csv")}
+    rerun = _start([*args, f"hydra.sweep.dir={sweep}"], tmp_path)
+    _, stderr = rerun.communicate(timeout=300)
+    assert rerun.returncode == 0, stderr[-2000:]
+    assert "jobs in" in stderr.strip().splitlines()[-1]  # the sweep's closing line
+    rows = {p: read_rows(p) for p in sweep.glob("*/episodes.csv")}
+    assert len(rows) == 4 and sorted(int(r["env"]) for v in rows.values() for r in v) == list(
+        range(12)
+    )
+    for path, before in kept.items():  # rows written before the stop are kept as they were
+        assert rows[path][: len(before)] == before
 
 
 def test_sigkill_to_a_sweep_launcher_leaves_no_worker_running(tmp_path):

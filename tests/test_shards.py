@@ -152,3 +152,20 @@ def test_a_shard_out_of_range_or_a_subdir_without_the_shard_is_one_line(tmp_path
     )
     assert proc.returncode == 2 and "two jobs of the sweep write into" in proc.stderr, proc.stderr
     assert not (tmp_path / "s").exists()
+
+
+def test_a_sharded_sweep_on_submitit_local_writes_every_shard_and_tabulates(tmp_path):
+    from analysis.table import main as table
+
+    sweep = tmp_path / "sweep"
+    args = ["-m", "hydra/launcher=submitit_local", *CELL, "shards=2", f"hydra.sweep.dir={sweep}"]
+    proc = _run(args, tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    shards = sorted(sweep.glob("*/episodes.csv"))
+    assert [p.parent.name for p in shards] == [
+        "task1_dmp_seed0_shard0of2",
+        "task1_dmp_seed0_shard1of2",
+    ]
+    assert [int(r["env"]) for r in _rows(shards)] == list(range(7))
+    assert table([str(sweep), "--out", str(tmp_path / "table")]) == 0
+    assert "| 1 | dmp | 7 |" in (tmp_path / "table" / "fig5.md").read_text()
