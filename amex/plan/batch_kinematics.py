@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 from amex.errors import ConfigError
+from amex.plan.kinematics_kernels import capsule_sphere_distances, forward_frames
 from amex.robot import RobotModel
 
 _AXES = {
@@ -113,13 +114,27 @@ class BatchKinematics:
         self.cap_inv_len2 = np.array(
             [1.0 / (4 * c.half_length**2) if c.half_length > 0 else 0.0 for c in caps]
         )
+        self.cap_ends = np.zeros((len(caps), 2, 3))  # per capsule: segment start, its vector
+        for _, idx, ends in self.cap_groups:
+            self.cap_ends[idx] = ends.reshape(-1, 2, 3)
+        self.parents_array = np.array(self.parents, dtype=np.int64)
 
     def forward(self, q: np.ndarray) -> BatchPoses:
         """Joint frames at each row of ``q``, shape (T, nv) [rad].
 
         Per joint: ``R_j = R_parent A_j Rz(q_j)`` and ``p_j = p_parent + R_parent b_j`` with the
-        (turned) joint placement ``(A_j, b_j)``, evaluated for all knots at once.
+        (turned) joint placement ``(A_j, b_j)``, evaluated for all knots at once, in one compiled
+        call (:mod:`amex.plan.kinematics_kernels`; bit for bit :meth:`forward_numpy`).
         """
+        T = q.shape[0]
+        axes = np.empty((self.njoints, 3, 3, T))
+        pos = np.empty((self.njoints, 3, T))
+        qt = q.T
+        forward_frames(self.local, self.parents_array, np.sin(qt), np.cos(qt), axes, pos)
+        return BatchPoses(axes, pos, axes[:, 2])
+
+    def forward_numpy(self, q: np.ndarray) -> BatchPoses:
+        """:meth:`forward` in numpy (the reference of the compiled version)."""
         T = q.shape[0]
         axes = np.empty((self.njoints, 3, 3, T))  # axes[j, b] = column b of R_j
         pos = np.empty((self.njoints, 3, T))
@@ -157,7 +172,33 @@ class BatchKinematics:
     def capsule_distances(
         self, poses: BatchPoses, centers: np.ndarray, radii: np.ndarray
     ) -> CapsuleDistances:
-        """Distances of every capsule to every sphere (``centers`` (k, 3) [m], ``radii`` (k,))."""
+        """Distances of every capsule to every sphere (``centers`` (k, 3) [m], ``radii`` (k,)).
+
+        One compiled call for two knots or more (bit for bit :meth:`capsule_distances_numpy`,
+        which one knot uses: :mod:`amex.plan.kinematics_kernels`).
+        """
+        T, C, k = poses.position.shape[2], len(self.cap_joint), len(radii)
+        if T < 2 or not (poses.rotation.flags.c_contiguous and poses.position.flags.c_contiguous):
+            return self.capsule_distances_numpy(poses, centers, radii)
+        distance, offset = np.empty((C, k, T)), np.empty((C, k, 3, T))
+        capsule_sphere_distances(
+            poses.rotation,
+            poses.position,
+            self.cap_joint,
+            self.cap_ends,
+            self.cap_inv_len2,
+            self.cap_radius,
+            np.ascontiguousarray(centers, dtype=float).reshape(k, 3),
+            np.ascontiguousarray(radii, dtype=float),
+            distance,
+            offset,
+        )
+        return CapsuleDistances(distance, offset)
+
+    def capsule_distances_numpy(
+        self, poses: BatchPoses, centers: np.ndarray, radii: np.ndarray
+    ) -> CapsuleDistances:
+        """:meth:`capsule_distances` in numpy (the reference of the compiled version)."""
         T, C, k = poses.position.shape[2], len(self.cap_joint), len(radii)
         start, seg = np.empty((C, 3, T)), np.empty((C, 3, T))  # capsule axis segments, world
         for j, idx, ends in self.cap_groups:

@@ -36,6 +36,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 from scipy.linalg import LinAlgError, solveh_banded
+from scipy.linalg.lapack import dpbsv as _dpbsv
 
 from amex.control.state import skew
 from amex.errors import ConfigError, SolverError
@@ -45,6 +46,7 @@ from amex.plan.batch_kinematics import (
     CapsuleDistances,
     batch_kinematics,
 )
+from amex.plan.kinematics_kernels import final_terms_joint
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
@@ -153,6 +155,15 @@ def _acceleration_scale(costs: TrajectoryCosts, dt: float) -> float | np.ndarray
     return s_acc
 
 
+@lru_cache(maxsize=16)
+def _final_weights(costs: TrajectoryCosts) -> np.ndarray:
+    """Square roots of the four final weights (position, velocity, axis, axis rate)."""
+    c = costs
+    w = np.sqrt([c.final_position, c.final_velocity, c.final_axis, c.final_axis_velocity])
+    w.flags.writeable = False
+    return w
+
+
 def _final_terms(
     model: pin.Model,
     data: pin.Data,
@@ -165,7 +176,48 @@ def _final_terms(
 
     The Jacobian columns are (q_{T-1}, q_T). Rows: position, joint velocity, axis, axis rate.
     The axis-rate derivative uses ``d omega / d q_i = z_i x sum_{k>i} z_k v_k`` (serial chain).
+    With a joint final velocity (ours) the arithmetic is one compiled call
+    (:func:`~amex.plan.kinematics_kernels.final_terms_joint`), bit for bit
+    :func:`_final_terms_numpy`, which the TCP velocity (the original's) uses.
     """
+    c, dt, n = problem.costs, problem.dt, len(q_last)
+    if c.final_velocity_space == "tcp":
+        return _final_terms_numpy(model, data, fid, problem, q_prev, q_last)
+    pin.computeJointJacobians(model, data, q_last)
+    oMf = pin.updateFramePlacement(model, data, fid)
+    J = pin.getFrameJacobian(model, data, fid, _LWA)
+    v = (q_last - q_prev) / dt
+    Jz = np.empty((3, n))
+    residual = np.empty(9 + n)
+    jac = np.empty((9 + n, 2 * n))
+    w = _final_weights(c)
+    final_terms_joint(
+        J,
+        np.ascontiguousarray(oMf.rotation[:, 2]),
+        oMf.translation,
+        v,
+        J[3:] @ v,
+        problem.goal_pos,
+        problem.goal_axis,
+        w,
+        float(dt),
+        Jz,
+        residual,
+        jac,
+    )
+    residual[6 + n :] = w[3] * (Jz @ v)
+    return residual, jac
+
+
+def _final_terms_numpy(
+    model: pin.Model,
+    data: pin.Data,
+    fid: int,
+    problem: TrajectoryProblem,
+    q_prev: np.ndarray,
+    q_last: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_final_terms` in numpy (the reference of the compiled version; the original's)."""
     c, dt, n = problem.costs, problem.dt, len(q_last)
     pin.computeJointJacobians(model, data, q_last)
     oMf = pin.updateFramePlacement(model, data, fid)
@@ -346,6 +398,24 @@ def _evaluate(
     return _linearize(robot, problem, _residuals(robot, data, problem, x))
 
 
+def _solve_band(band: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """``x`` with ``A x = rhs`` for ``A`` in lower band storage; ``band`` and ``rhs`` are consumed.
+
+    LAPACK's ``dpbsv`` called directly: what ``scipy.linalg.solveh_banded(band, rhs, lower=True,
+    overwrite_ab=True, overwrite_b=True, check_finite=False)`` calls, without its ~20 us of
+    checks per call (the same result to the bit).
+
+    Raises:
+        LinAlgError: the matrix is not positive definite.
+    """
+    _, x, info = _dpbsv(band, rhs, lower=1, overwrite_ab=1, overwrite_b=1)
+    if info > 0:
+        raise LinAlgError(f"{info}th leading minor not positive definite")
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal pbsv")
+    return x
+
+
 def _free_knots(robot: RobotModel, problem: TrajectoryProblem, q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=float)
     shape = (problem.steps + 1, robot.model.nq)
@@ -458,14 +528,7 @@ def solve_trajectory(
                 band.ravel()[guard.flat] += guard.curvature(guarded)
         band[0] += lam
         try:
-            step = solveh_banded(
-                band,
-                -current.equations.gradient,
-                overwrite_ab=True,
-                overwrite_b=True,
-                lower=True,
-                check_finite=False,
-            )
+            step = _solve_band(band, -current.equations.gradient)
         except (LinAlgError, ValueError) as e:
             raise SolverError(f"Gauss-Newton Cholesky failed: {e}", problem) from e
         step = step.reshape(x.shape)
