@@ -9,10 +9,12 @@ calls them for every trajectory of two knots or more.
 Bit for bit the numpy arithmetic: compiled without ``fastmath`` (IEEE operations in program
 order, no contraction into fused multiply-adds), except where numpy itself fuses. Its matrix
 products go to OpenBLAS, whose kernels accumulate ``sum_k a_k b_k`` as a chain of fused
-multiply-adds onto +0.0 from ``k = 0`` (:func:`fma3` does the same); its ``einsum('cat,cat->ct')`` adds the
-three products left to right for two or more knots (for one knot it pairs them differently, so
-one-knot trajectories stay in numpy); sines and cosines come from numpy. ``tests/test_optimizer.py``
-checks equality with the numpy path on random configurations.
+multiply-adds onto +0.0 from ``k = 0`` (:func:`fma3` does the same, signed zeros included); its
+``einsum('cat,cat->ct')`` adds the three products left to right for two or more knots (for one
+knot it pairs them differently, so one-knot trajectories stay in numpy); sines, cosines and the
+matrix-vector products (summed in an order of OpenBLAS's own) come from numpy.
+``tests/test_optimizer.py`` checks equality, sign bits included, with the numpy path on random
+configurations.
 """
 
 from __future__ import annotations
@@ -157,11 +159,11 @@ def final_terms_joint(
     velocity; ``Jwv``: ``J[3:] @ v`` from numpy.
     """
     n = v.shape[0]
-    # -skew(z), as numpy negates skew(z) (zeros become -0.0)
+    # -skew(z), as numpy negates skew(z): its zeros become -0.0, -(-x) is x
     S = np.empty((3, 3))
-    S[0, 0], S[0, 1], S[0, 2] = -0.0, -(-z[2]), -z[1]
-    S[1, 0], S[1, 1], S[1, 2] = -z[2], -0.0, -(-z[0])
-    S[2, 0], S[2, 1], S[2, 2] = -(-z[1]), -z[0], -0.0
+    S[0, 0], S[0, 1], S[0, 2] = -0.0, z[2], -z[1]
+    S[1, 0], S[1, 1], S[1, 2] = -z[2], -0.0, z[0]
+    S[2, 0], S[2, 1], S[2, 2] = z[1], -z[0], -0.0
     W = np.empty((3, 3))  # skew(J_w v)
     W[0, 0], W[0, 1], W[0, 2] = 0.0, -Jwv[2], Jwv[1]
     W[1, 0], W[1, 1], W[1, 2] = Jwv[2], 0.0, -Jwv[0]
