@@ -115,8 +115,8 @@ class BatchKinematics:
             [1.0 / (4 * c.half_length**2) if c.half_length > 0 else 0.0 for c in caps]
         )
         self.cap_ends = np.zeros((len(caps), 2, 3))  # per capsule: segment start, its vector
-        for _, idx, ends in self.cap_groups:
-            self.cap_ends[idx] = ends.reshape(-1, 2, 3)
+        for _, idx, group_ends in self.cap_groups:
+            self.cap_ends[idx] = group_ends.reshape(-1, 2, 3)
         self.parents_array = np.array(self.parents, dtype=np.int64)
 
     def forward(self, q: np.ndarray) -> BatchPoses:

@@ -39,7 +39,7 @@ def _fma(typingctx, a, b, c):  # type: ignore[no-untyped-def]
 @numba.njit(cache=True, inline="always")
 def fma3(a0: float, b0: float, a1: float, b1: float, a2: float, b2: float) -> float:
     """``a0 b0 + a1 b1 + a2 b2`` as OpenBLAS's matrix product computes it (from +0.0 on)."""
-    return _fma(a2, b2, _fma(a1, b1, _fma(a0, b0, 0.0)))
+    return _fma(a2, b2, _fma(a1, b1, _fma(a0, b0, 0.0)))  # type: ignore[call-arg]
 
 
 @numba.njit(cache=True)
