@@ -72,6 +72,7 @@ from amex.methods.base import Method, MethodConfig, Observation
 from amex.scaling import scaled
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
+    from amex.plan.optimizer import KnotFrames
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
 
@@ -233,6 +234,7 @@ class CR(Method):
     def restart(self) -> None:
         """Forget the last solution: the next step warm-starts from the reference plan."""
         self._knots = self.reference_q  # last solution, shape (T + 1, 7) [rad]
+        self._frames: KnotFrames | None = None  # its frames at knots 1..T (the solver's)
         self._knots_t0, self._knots_dt = 0.0, self.reference_dt  # its first knot's time, spacing
         self._status = CRStatus("hold", 0, 0, math.nan, False, 0.0)
 
@@ -282,7 +284,15 @@ class CR(Method):
             costs=self.costs,
         )
         offset = (obs.t - self._knots_t0) / self._knots_dt
-        q_init = _resample(self._knots, offset, self.knot_dt / self._knots_dt, steps + 1)
+        stride = self.knot_dt / self._knots_dt
+        index = _whole_knots(len(self._knots), offset, stride, steps + 1)
+        frames = None
+        if index is None:
+            q_init = _resample(self._knots, offset, stride, steps + 1)
+        else:  # a shift by whole knots: the last solution's frames at them are still right
+            q_init = self._knots[index]
+            if self._frames is not None and index[1] >= 1:
+                frames = self._frames.take(index[1:] - 1)  # frames hold the free knots 1..T
         solution = solve_trajectory(
             self.robot,
             problem,
@@ -290,8 +300,10 @@ class CR(Method):
             max_iterations=self.iterations,
             tolerance=self.tolerance,
             damping=self.damping,
+            init_frames=frames,
         )
         self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
+        self._frames = solution.frames
         self._status = CRStatus(
             mode,
             steps,
@@ -346,9 +358,8 @@ def _resample(knots: np.ndarray, offset: float, stride: float, count: int) -> np
     within 1e-9 of an integer take that row exactly (the usual case: a shift by whole knots).
     """
     last = len(knots) - 1
-    first, step = round(offset), round(stride)
-    if abs(offset - first) <= 1e-9 and abs(stride - step) <= 1e-9:  # whole knots: no blending
-        index = np.clip(first + step * np.arange(count), 0, last)
+    index = _whole_knots(len(knots), offset, stride, count)
+    if index is not None:  # whole knots: no blending
         return knots[index]
     u = np.clip(offset + stride * np.arange(count), 0.0, float(last))
     nearest = np.rint(u)
@@ -358,3 +369,16 @@ def _resample(knots: np.ndarray, offset: float, stride: float, count: int) -> np
     if last == 0:
         return np.repeat(knots[:1], count, axis=0)
     return (1.0 - a) * knots[i] + a * knots[i + 1]
+
+
+def _whole_knots(length: int, offset: float, stride: float, count: int) -> np.ndarray | None:
+    """The rows :func:`_resample` takes when it takes whole knots (``offset`` and ``stride`` within
+    1e-9 of integers): ``offset + k stride`` clamped to ``[0, length - 1]``; else None.
+    """
+    first, step = round(offset), round(stride)
+    if abs(offset - first) > 1e-9 or abs(stride - step) > 1e-9:
+        return None
+    index = np.arange(first, first + step * count, step) if step else np.full(count, first)
+    np.minimum(index, length - 1, out=index)
+    np.maximum(index, 0, out=index)
+    return index

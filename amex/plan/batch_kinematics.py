@@ -18,7 +18,11 @@ import numpy as np
 import pinocchio as pin
 
 from amex.errors import ConfigError
-from amex.plan.kinematics_kernels import capsule_sphere_distances, forward_frames
+from amex.plan.kinematics_kernels import (
+    capsule_sphere_distances,
+    forward_frames,
+    pair_gradients,
+)
 from amex.robot import RobotModel
 
 _AXES = {
@@ -230,8 +234,32 @@ class BatchKinematics:
         ``dd/dq_i = n . (z_i x (x - p_i)) = z_i . (x x n) + n . (p_i x z_i)`` for the joints i
         supporting the capsule, with n the unit normal, x the closest axis point and z_i, p_i
         joint i's world axis and origin: ``n^T J_point`` with Pinocchio's LOCAL_WORLD_ALIGNED
-        joint Jacobian, written with the axis lines' Plucker coordinates (z_i, p_i x z_i).
+        joint Jacobian, written with the axis lines' Plucker coordinates (z_i, p_i x z_i). One
+        compiled call (bit for bit :meth:`distance_gradients_numpy`).
         """
+        c, o, t = index
+        out = np.empty((len(c), self.cap_support.shape[1]))
+        pair_gradients(
+            poses.axis,
+            poses.position,
+            dist.offset,
+            np.ascontiguousarray(centers, dtype=float).reshape(-1, 3),
+            self.cap_support,
+            np.asarray(c, dtype=np.int64),
+            np.asarray(o, dtype=np.int64),
+            np.asarray(t, dtype=np.int64),
+            out,
+        )
+        return out
+
+    def distance_gradients_numpy(
+        self,
+        poses: BatchPoses,
+        dist: CapsuleDistances,
+        centers: np.ndarray,
+        index: tuple[np.ndarray, ...],
+    ) -> np.ndarray:
+        """:meth:`distance_gradients` in numpy (the reference of the compiled version)."""
         c, o, t = index
         used = np.zeros(poses.axis.shape[2], dtype=bool)
         used[t] = True

@@ -207,3 +207,90 @@ def final_terms_joint(
             unit = (1.0 if r == c else 0.0) / dt  # np.eye(n) / dt
             jac[3 + r, c] = w[1] * -unit
             jac[3 + r, n + c] = w[1] * unit
+
+
+@numba.njit(cache=True)
+def pair_gradients(
+    axis: np.ndarray,
+    position: np.ndarray,
+    offset: np.ndarray,
+    centers: np.ndarray,
+    support: np.ndarray,
+    cap: np.ndarray,
+    obs: np.ndarray,
+    knot: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """Fill ``out`` (P, nv) with the distance gradients of the pairs ``(cap, obs, knot)``.
+
+    As :meth:`~amex.plan.batch_kinematics.BatchKinematics.distance_gradients`: ``axis``
+    (njoints, 3, T) and ``position`` (njoints, 3, T) from the frames, ``offset`` (C, k, 3, T)
+    from the distances, ``support`` (C, nv) the joints that move each capsule.
+    """
+    nv = out.shape[1]
+    line = np.empty(6)
+    wn = np.empty(6)
+    for p in range(cap.shape[0]):
+        c, o, t = cap[p], obs[p], knot[p]
+        o0, o1, o2 = offset[c, o, 0, t], offset[c, o, 1, t], offset[c, o, 2, t]
+        q0, q1, q2 = o0 * o0, o1 * o1, o2 * o2
+        norm = np.sqrt((q0 + q2) + q1)  # numpy's einsum over three contiguous entries
+        norm = norm if norm > 1e-12 or norm != norm else 1e-12  # np.maximum(norm, 1e-12)
+        n0, n1, n2 = o0 / norm, o1 / norm, o2 / norm
+        x0, x1, x2 = centers[o, 0] + o0, centers[o, 1] + o1, centers[o, 2] + o2
+        first = x1 * n2
+        wn[0] = first - x2 * n1
+        first = x2 * n0
+        wn[1] = first - x0 * n2
+        first = x0 * n1
+        wn[2] = first - x1 * n0
+        wn[3], wn[4], wn[5] = n0, n1, n2
+        for i in range(nv):
+            z0, z1, z2 = axis[i + 1, 0, t], axis[i + 1, 1, t], axis[i + 1, 2, t]
+            p0, p1, p2 = position[i + 1, 0, t], position[i + 1, 1, t], position[i + 1, 2, t]
+            line[0], line[1], line[2] = z0, z1, z2
+            first = p1 * z2
+            line[3] = first - p2 * z1
+            first = p2 * z0
+            line[4] = first - p0 * z2
+            first = p0 * z1
+            line[5] = first - p1 * z0
+            total = 0.0
+            for a in range(6):
+                total += wn[a] * line[a]
+            out[p, i] = total * (1.0 if support[c, i] else 0.0)
+
+
+@numba.njit(cache=True)
+def near_pairs(
+    distance: np.ndarray, margin: float, guard: float, scale: float, r_col: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs with ``1 - d / margin > -guard``, sorted by knot, and their residuals.
+
+    Returns ``(cap, obs, knot, r)`` with ``r = scale * max(1 - d / margin, 0)``, and writes ``r``
+    into ``r_col`` (C, k, T) at the pairs: what ``np.nonzero`` of the transposed test and the
+    numpy expressions of :func:`amex.plan.optimizer._residuals` give.
+    """
+    C, k, T = distance.shape
+    count = 0
+    for t in range(T):
+        for c in range(C):
+            for o in range(k):
+                if 1.0 - distance[c, o, t] / margin > -guard:
+                    count += 1
+    cap = np.empty(count, dtype=np.int64)
+    obs = np.empty(count, dtype=np.int64)
+    knot = np.empty(count, dtype=np.int64)
+    r = np.empty(count)
+    p = 0
+    for t in range(T):
+        for c in range(C):
+            for o in range(k):
+                depth = 1.0 - distance[c, o, t] / margin
+                if depth > -guard:
+                    cap[p], obs[p], knot[p] = c, o, t
+                    value = depth if depth > 0.0 or depth != depth else 0.0  # np.maximum
+                    r[p] = scale * value
+                    r_col[c, o, t] = r[p]
+                    p += 1
+    return cap, obs, knot, r

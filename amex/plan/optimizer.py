@@ -46,7 +46,7 @@ from amex.plan.batch_kinematics import (
     CapsuleDistances,
     batch_kinematics,
 )
-from amex.plan.kinematics_kernels import final_terms_joint
+from amex.plan.kinematics_kernels import final_terms_joint, near_pairs
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
@@ -54,6 +54,7 @@ __all__ = [
     "BatchKinematics",
     "BatchPoses",
     "CapsuleDistances",
+    "KnotFrames",
     "NormalEquations",
     "TrajectoryCosts",
     "TrajectoryProblem",
@@ -78,7 +79,9 @@ class NormalEquations(NamedTuple):
 
     Attributes:
         hessian: ``2 J^T J`` in LAPACK lower band storage (``solveh_banded(..., lower=True)``),
-            ``hessian[i - j, j] = H[i, j]`` for ``0 <= i - j <= 2n``, shape (2n + 1, nT).
+            ``hessian[i - j, j] = H[i, j]`` for ``0 <= i - j <= 2n``, shape (2n + 1, nT), in
+            Fortran order (as LAPACK reads it: no copy before each solve); its entries are
+            updated in place through :func:`_band_memory`.
         gradient: ``2 J^T r``, shape (nT,) for knots q_1..q_T stacked knot-major.
         cost: f(x).
     """
@@ -127,6 +130,7 @@ def _acceleration_band(
     band[2 * n, : n * max(T - 2, 0)] = scale
     if metric:  # every band entry couples a joint with itself: scale its column by H_jj
         band *= np.tile(np.asarray(metric, dtype=float), T)
+    band = np.asfortranarray(band)  # LAPACK's layout (NormalEquations)
     band.flags.writeable = False
     return band
 
@@ -141,7 +145,12 @@ def _lower_triangle(m: int) -> tuple[np.ndarray, np.ndarray]:
 def _add_block(band: np.ndarray, block: np.ndarray, first: int) -> None:
     """Add a symmetric ``block`` starting at row/column ``first`` to a lower band matrix."""
     i, j = _lower_triangle(block.shape[0])
-    band.ravel()[(i - j) * band.shape[1] + first + j] += block[i, j]
+    _band_memory(band)[(first + j) * band.shape[0] + (i - j)] += block[i, j]
+
+
+def _band_memory(band: np.ndarray) -> np.ndarray:
+    """A Fortran-ordered band as a flat view: entry ``[d, col]`` is at ``col * (2n + 1) + d``."""
+    return band.T.reshape(-1)
 
 
 def _acceleration_scale(costs: TrajectoryCosts, dt: float) -> float | np.ndarray:
@@ -299,6 +308,43 @@ class _Point(NamedTuple):
     near: tuple[np.ndarray, np.ndarray, np.ndarray] | None
 
 
+class KnotFrames(NamedTuple):
+    """The frames at a trajectory's free knots, and its capsule distances to the obstacles.
+
+    A solution carries those of its final knots (:attr:`TrajectorySolution.frames`); a warm
+    start that reuses whole knots of it (CR's shift by one knot) can pass them on, reordered with
+    :meth:`take`, instead of computing them again: each knot's frames and distances depend on
+    that knot alone, so they are the same numbers.
+
+    Attributes:
+        poses: batched frames, one column per free knot.
+        dist: distances to ``obstacles`` (None: not computed).
+        obstacles: the sphere centres they were computed for, shape (k, 3) [m].
+        radii: their radii, shape (k,) [m].
+    """
+
+    poses: BatchPoses
+    dist: CapsuleDistances | None
+    obstacles: np.ndarray
+    radii: np.ndarray
+
+    def take(self, columns: np.ndarray) -> KnotFrames:
+        """The frames of the free knots ``columns`` (indices into these), in that order."""
+        rotation = self.poses.rotation[..., columns]
+        poses = BatchPoses(rotation, self.poses.position[..., columns], rotation[:, 2])
+        dist = None
+        if self.dist is not None:
+            dist = CapsuleDistances(self.dist.distance[..., columns], self.dist.offset[..., columns])
+        return KnotFrames(poses, dist, self.obstacles, self.radii)
+
+    def distances(self, problem: TrajectoryProblem) -> CapsuleDistances | None:
+        """The distances, if computed for the obstacles of ``problem``."""
+        same = np.array_equal(self.obstacles, problem.obstacles) and np.array_equal(
+            self.radii, problem.obstacle_radii
+        )
+        return self.dist if same else None
+
+
 class _Evaluation(NamedTuple):
     residuals: list[np.ndarray]  # acceleration (T, n), final (m,), collision (C, k, T)
     equations: NormalEquations
@@ -306,12 +352,17 @@ class _Evaluation(NamedTuple):
 
 
 def _residuals(
-    robot: RobotModel, data: pin.Data, problem: TrajectoryProblem, x: np.ndarray
+    robot: RobotModel,
+    data: pin.Data,
+    problem: TrajectoryProblem,
+    x: np.ndarray,
+    known: KnotFrames | None = None,
 ) -> _Point:
     """Residuals and cost at the free knots ``x`` (T, n) [rad], without the normal equations.
 
     A trial step needs only its cost (and its collision residuals), so the derivatives are left
-    to :func:`_linearize`, which is skipped for rejected and final steps.
+    to :func:`_linearize`, which is skipped for rejected and final steps. ``known``: the frames
+    (and distances) at ``x``, already computed (:class:`KnotFrames`).
     """
     T, n = x.shape
     c, dt = problem.costs, problem.dt
@@ -333,14 +384,16 @@ def _residuals(
     poses = dist = near = None
     if r_col.size and c.collision > 0.0:
         kin = batch_kinematics(robot)
-        poses = kin.forward(x)
-        dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
-        depth = 1.0 - dist.distance / c.collision_margin
-        knot, cap, obs = np.nonzero(depth.transpose(2, 0, 1) > -_GUARD)  # sorted by knot
+        poses = known.poses if known is not None else kin.forward(x)
+        dist = known.distances(problem) if known is not None else None
+        if dist is None:
+            dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
+        # the pairs with 1 - d / margin > -_GUARD, sorted by knot, and their residuals
+        cap, obs, knot, r_near = near_pairs(
+            dist.distance, float(c.collision_margin), _GUARD, math.sqrt(c.collision), r_col
+        )
         if knot.size:
             near = (cap, obs, knot)
-            r_near = math.sqrt(c.collision) * np.maximum(depth[near], 0.0)
-            r_col[near] = r_near
             cost += float(r_near @ r_near)
     return _Point(x, [r_acc, r_fin, r_col], cost, J_fin, poses, dist, near)
 
@@ -382,9 +435,9 @@ def _linearize(robot: RobotModel, problem: TrajectoryProblem, point: _Point) -> 
         grad[rows] += np.add.reduceat(2.0 * r_near[:, None] * J_col, first, axis=0)
         i, j = _lower_triangle(n)
         outer = 2.0 * J_col[:, i] * J_col[:, j]  # (P, n (n + 1) / 2)
-        flat = ((i - j) * (n * T) + rows[:, None] * n + j).ravel()
+        flat = ((rows[:, None] * n + j) * (2 * n + 1) + (i - j)).ravel()  # _band_memory's
         active = (r_near > 0.0)[:, None]
-        hessian.ravel()[flat] += np.add.reduceat(outer * active, first, axis=0).ravel()
+        _band_memory(hessian)[flat] += np.add.reduceat(outer * active, first, axis=0).ravel()
         guard = _Guard(near, outer, first, flat)
     return _Evaluation(
         point.residuals, NormalEquations(hessian, grad.reshape(-1), point.cost), guard
@@ -465,6 +518,7 @@ def solve_trajectory(
     max_iterations: int = 20,
     tolerance: float = 1e-4,
     damping: float = 1e-3,
+    init_frames: KnotFrames | None = None,
 ) -> TrajectorySolution:
     """Minimize the trajectory cost by Levenberg-damped Gauss-Newton.
 
@@ -491,9 +545,12 @@ def solve_trajectory(
         max_iterations: cap on iterations (solve + evaluation each).
         tolerance: stopping threshold on the relative cost decrease and on the step [rad].
         damping: smallest Levenberg term lambda on the Hessian diagonal (the original: 1e-3).
+        init_frames: the frames (and distances) at ``q_init``'s free knots, if known
+            (:class:`KnotFrames`; CR passes those of its last solution, shifted).
 
     Returns:
-        The best trajectory found; the cost never increases from the initial guess.
+        The best trajectory found, with the frames at its knots; the cost never increases from
+        the initial guess.
 
     Raises:
         SolverError: if the cost is not finite or the Cholesky factorization fails.
@@ -508,7 +565,9 @@ def solve_trajectory(
     _retain_freed_memory()
     data = robot.model.createData()
     x = _free_knots(robot, problem, _initial_guess(problem) if q_init is None else q_init)
-    point = _residuals(robot, data, problem, x)
+    if init_frames is not None and init_frames.poses.position.shape[2] != len(x):
+        init_frames = None
+    point = _residuals(robot, data, problem, x, init_frames)
     if not math.isfinite(point.cost):
         raise SolverError(f"non-finite trajectory cost {point.cost} at the initial guess", problem)
     lam = max(damping, _INITIAL_DAMPING)
@@ -525,7 +584,7 @@ def solve_trajectory(
         if guard is not None:
             guarded = woken[guard.pairs] & (r_col[guard.pairs] == 0.0)
             if guarded.any():
-                band.ravel()[guard.flat] += guard.curvature(guarded)
+                _band_memory(band)[guard.flat] += guard.curvature(guarded)
         band[0] += lam
         try:
             step = _solve_band(band, -current.equations.gradient)
@@ -552,8 +611,11 @@ def solve_trajectory(
                 woken[tuple(index[newly] for index in guard.pairs)] = True
             if not pushed_in:
                 lam *= 10.0
+    frames = None
+    if point.poses is not None:
+        frames = KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
     return TrajectorySolution(
-        np.vstack([problem.q_start, point.x]), point.cost, iterations, converged
+        np.vstack([problem.q_start, point.x]), point.cost, iterations, converged, frames
     )
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -117,12 +117,14 @@ class TrajectoryProblem:
             object.__setattr__(self, "obstacles", np.zeros((0, 3)))
         n, k = max(self.q_start.size, 1), self.obstacle_radii.size
         shapes = ((n,), (n,), (3,), (3,), (k, 3), (k,))
-        for name, shape in zip(names, shapes, strict=True):
-            value = getattr(self, name)
+        values = [getattr(self, name) for name in names]
+        for name, shape, value in zip(names, shapes, values, strict=True):
             if value.shape != shape:
                 raise SolverError(f"trajectory problem: {name} has shape {value.shape}", self)
-            if not np.all(np.isfinite(value)):
-                raise SolverError(f"trajectory problem: non-finite {name}={value}", self)
+        if not np.isfinite(np.concatenate([v.ravel() for v in values])).all():  # one check: CR
+            for name, value in zip(names, values, strict=True):  # builds one problem per step
+                if not np.isfinite(value).all():
+                    raise SolverError(f"trajectory problem: non-finite {name}={value}", self)
         if int(self.steps) != self.steps or self.steps < 1:
             raise SolverError(f"trajectory problem: steps={self.steps}; valid: integer >= 1", self)
         if not (math.isfinite(self.dt) and self.dt > 0.0):
@@ -138,9 +140,12 @@ class TrajectorySolution(NamedTuple):
         iterations: iterations used (one banded solve and one cost evaluation each, whether the
             step was taken or not).
         converged: whether the step or the relative cost decrease fell below the tolerance.
+        frames: the frames and obstacle distances at the free knots ``q[1:]``
+            (:class:`amex.plan.optimizer.KnotFrames`), or None (no collision term).
     """
 
     q: np.ndarray
     cost: float
     iterations: int
     converged: bool
+    frames: Any = None
