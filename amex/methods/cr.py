@@ -372,8 +372,10 @@ def _resample(knots: np.ndarray, offset: float, stride: float, count: int) -> np
 
 
 def _whole_knots(length: int, offset: float, stride: float, count: int) -> np.ndarray | None:
-    """The rows :func:`_resample` takes when it takes whole knots (``offset`` and ``stride`` within
-    1e-9 of integers): ``offset + k stride`` clamped to ``[0, length - 1]``; else None.
+    """The rows of a resampling by whole knots, else None.
+
+    Whole knots: ``offset`` and ``stride`` within 1e-9 of integers; the rows are then
+    ``offset + k stride``, ``k < count``, clamped to ``[0, length - 1]`` (:func:`_resample`).
     """
     first, step = round(offset), round(stride)
     if abs(offset - first) > 1e-9 or abs(stride - step) > 1e-9:

@@ -334,7 +334,8 @@ class KnotFrames(NamedTuple):
         poses = BatchPoses(rotation, self.poses.position[..., columns], rotation[:, 2])
         dist = None
         if self.dist is not None:
-            dist = CapsuleDistances(self.dist.distance[..., columns], self.dist.offset[..., columns])
+            d = self.dist
+            dist = CapsuleDistances(d.distance[..., columns], d.offset[..., columns])
         return KnotFrames(poses, dist, self.obstacles, self.radii)
 
     def distances(self, problem: TrajectoryProblem) -> CapsuleDistances | None:
