@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from amex.control.disturbance import DisturbanceConfig
 from amex.control.osc import PD, OSCGains
 from amex.episode import LoopConfig, MismatchConfig
 from amex.errors import ConfigError
@@ -46,6 +47,13 @@ class ControllerConfig:
         damping: joint damping task (original: Kd 10 at precision 0.1; we weight it 0.01).
         margin: collision margin (original 0.1 m), multiplied by ``scenario.scale`` [m].
         reg: regularizer H = reg * I of Eq. 4 [-].
+        disturbance: compensation of unmodelled torques: ``none`` (the paper's controller),
+            ``observer`` (generalized-momentum observer) or ``integral`` (integral action on the
+            task errors); :mod:`amex.control.disturbance`.
+        observer_bandwidth: the observer's gain K_O, bandwidth of its estimate [1/s].
+        observer_limit: clamp of the observer's estimate, fraction of the torque limits [-].
+        integral_gain: K_I of the integral action [1/s].
+        integral_limit: bound of the integral's task acceleration [m/s^2, rad/s^2].
     """
 
     col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
@@ -53,6 +61,21 @@ class ControllerConfig:
     damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
     margin: float = 0.1
     reg: float = 1e-6
+    disturbance: str = "none"
+    observer_bandwidth: float = 50.0
+    observer_limit: float = 0.5
+    integral_gain: float = 5.0
+    integral_limit: float = 5.0
+
+    def compensation(self) -> DisturbanceConfig:
+        """The inner controller's disturbance compensation (:mod:`amex.control.disturbance`)."""
+        return DisturbanceConfig(
+            kind=self.disturbance,
+            bandwidth=float(self.observer_bandwidth),
+            limit=float(self.observer_limit),
+            integral_gain=float(self.integral_gain),
+            integral_limit=float(self.integral_limit),
+        )
 
 
 @dataclass
@@ -139,6 +162,7 @@ def validate(config: RunConfig) -> None:
     config.perception.validate()
     config.prediction.validate()
     config.mismatch.validate()
+    config.controller.compensation().validate()
     plan = config.plan
     if not (plan.dt > 0 and plan.duration > 0):
         raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")

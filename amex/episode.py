@@ -30,6 +30,7 @@ import mujoco
 import numpy as np
 
 from amex.control.collision import CollisionModel
+from amex.control.disturbance import DisturbanceConfig, make_inner_controller
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
 from amex.errors import AmexError, ConfigError, SimulationError
@@ -179,6 +180,7 @@ def run_episode(
     perception: PerceptionConfig | None = None,
     prediction: PredictionConfig | None = None,
     mismatch: MismatchConfig | None = None,
+    disturbance: DisturbanceConfig | None = None,
 ) -> EpisodeResult:
     """Execute ``method`` in ``scenario`` and measure it (see :mod:`amex.metrics`).
 
@@ -192,6 +194,8 @@ def run_episode(
         perception: goal noise and latency seen by the method (default: exact).
         prediction: Kalman prediction of the perceived goal (default: off).
         mismatch: how the simulated arm differs from the controller's model (default: none).
+        disturbance: compensation of unmodelled torques in the inner controller (default: none,
+            the paper's controller); see :mod:`amex.control.disturbance`.
     """
     sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
     perception = perception or PerceptionConfig()
@@ -208,6 +212,9 @@ def run_episode(
     mjm, mjd = sim.model, sim.data
     substeps = loop.substeps
     dt = 1.0 / loop.inner_hz
+    # the inner controller: the OSC itself, or the OSC with disturbance compensation (a
+    # kinematic simulation has no dynamics to compensate: pass disturbance=None there)
+    inner = make_inner_controller(osc, dt, disturbance)
     n_steps = int(math.floor(loop.max_time * loop.inner_hz + 1e-9))
     speed_limit = loop.speed_limit_factor * robot.velocity_limit
     goal_axis = scenario.goal_axis
@@ -268,7 +275,7 @@ def run_episode(
                 command = method.step(obs)
                 compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
                 _check_command(command)
-            tau = osc.torque(state, command)
+            tau = inner.torque(state, command)
             mjd.qfrc_applied[:] = tau
             mujoco.mj_step(mjm, mjd)
             qacc = mjd.qacc

@@ -35,7 +35,14 @@ _NOT_RESULTS = ("episodes", "log")
 # Options added after runs were recorded, with the value that reproduces the behaviour before
 # them: at that value they are left out of the hashes, so adding an option does not orphan
 # existing runs (they resume and tabulate as before); any other value is hashed as usual.
-_ADDED_OPTIONS: dict[tuple[str, str], object] = {("perception", "preview"): 0.0}
+_ADDED_OPTIONS: dict[tuple[str, str], object] = {
+    ("perception", "preview"): 0.0,
+    ("controller", "disturbance"): "none",
+    ("controller", "observer_bandwidth"): 50.0,
+    ("controller", "observer_limit"): 0.5,
+    ("controller", "integral_gain"): 5.0,
+    ("controller", "integral_limit"): 5.0,
+}
 
 
 class StoreError(AmexError):

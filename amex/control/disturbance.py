@@ -1,0 +1,216 @@
+"""Compensation of the torque the controller's model does not explain (``controller.disturbance``).
+
+The inner controller computes ``tau = M q_ddot* + h`` with Pinocchio's model (:mod:`.osc`). On a
+robot that differs from it (``mismatch.*``: heavier links, joint friction and damping) the
+dynamics are ``M q_ddot + h = tau + tau_d`` with an unknown disturbance ``tau_d``, and the task
+PD of Eq. 6 alone has to carry it. Two ways of taking it off that PD, shared by every method
+(they wrap :meth:`OperationalSpaceController.torque`, which the episode loop calls):
+
+``observer``: the generalized-momentum observer of De Luca et al. With ``p = M(q) q_dot``,
+    ``p_dot = tau + tau_d + C^T q_dot - g`` (from ``M_dot = C + C^T``), and the residual
+
+        r(t) = K_O (p(t) - p(0) - int_0^t (tau + C^T q_dot - g + r) ds)
+
+    obeys ``r_dot = K_O (tau_d - r)``: a first-order low-pass of ``tau_d`` with bandwidth ``K_O``
+    [1/s], per joint, decoupled, without measured accelerations. The controller applies
+    ``tau = clip(M q_ddot* + h - r)``, so once ``r`` has converged the arm moves as the model
+    predicts. Discretised exactly over one inner step of length ``dt`` (``tau`` and the state at
+    the start of the step):
+
+        d_k = (p_k - p_{k-1}) / dt - (tau_{k-1} + C_{k-1}^T q_dot_{k-1} - g_{k-1}),
+        r_k = a r_{k-1} + (1 - a) d_k,   a = exp(-K_O dt),
+
+    ``d_k`` being the momentum the model cannot account for in the step. ``tau`` is the torque
+    actually applied (after the clip), never the command, and every term comes from Pinocchio's
+    model, never from the simulator. Saturation cannot wind the observer up (it sees the applied
+    torque); its estimate is clamped to ``limit`` times the joint torque limits so that a
+    disturbance beyond what the arm could fight (or a collision) is not chased.
+
+``integral``: integral action on the task errors of Eq. 6. Each active task (TCP position and
+    axis for task-space commands, joints for joint commands) gets ``y_ddot* += K_I z`` with
+    ``z = int (Kp (y* - y) + Kd (y_dot* - y_dot)) dt`` [m/s], implemented by shifting the
+    commanded velocity, ``y_dot* += K_I z / Kd`` (identical in Eq. 6). Anti-windup: ``z`` is not
+    integrated while any joint torque is at its limit, and ``K_I z`` is clamped to
+    ``integral_limit`` [m/s^2 or rad/s^2].
+
+A kinematic simulation (no dynamics) has nothing to compensate: the episode loop must not build
+a compensator there (:func:`make_inner_controller` with ``kind="none"``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from amex.control.osc import OperationalSpaceController
+from amex.control.state import RobotState
+from amex.errors import ConfigError
+from amex.interfaces import Command
+
+DISTURBANCE_KINDS = ("none", "observer", "integral")
+
+
+@dataclass(frozen=True)
+class DisturbanceConfig:
+    """How the inner controller compensates unmodelled torques.
+
+    Attributes:
+        kind: ``none`` (the paper's controller), ``observer`` or ``integral``.
+        bandwidth: observer gain K_O, the bandwidth of the estimate [1/s] (rad/s).
+        limit: the observer's estimate is clamped to this fraction of the torque limits [-].
+        integral_gain: K_I of the integral action [1/s].
+        integral_limit: bound on the integral's task acceleration ``|K_I z|`` [m/s^2, rad/s^2].
+    """
+
+    kind: str = "none"
+    bandwidth: float = 50.0
+    limit: float = 0.5
+    integral_gain: float = 5.0
+    integral_limit: float = 5.0
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for an unknown kind or non-positive gains and limits."""
+        if self.kind not in DISTURBANCE_KINDS:
+            raise ConfigError.invalid("controller.disturbance", self.kind, DISTURBANCE_KINDS)
+        for key, valid in (
+            ("bandwidth", "a rate > 0 [1/s]"),
+            ("limit", "a fraction of the torque limits in (0, 1]"),
+            ("integral_gain", "a rate > 0 [1/s]"),
+            ("integral_limit", "a bound > 0 [m/s^2]"),
+        ):
+            value = getattr(self, key)
+            if not (value > 0 and math.isfinite(value)) or (key == "limit" and value > 1):
+                raise ConfigError.invalid(f"controller.{_FIELD[key]}", value, valid)
+
+
+# the RunConfig names of the fields (controller.<name>)
+_FIELD = {
+    "bandwidth": "observer_bandwidth",
+    "limit": "observer_limit",
+    "integral_gain": "integral_gain",
+    "integral_limit": "integral_limit",
+}
+
+
+class MomentumObserver:
+    """Generalized-momentum disturbance observer, discretised per inner step (module docstring).
+
+    Args:
+        robot_model: the controller's Pinocchio model.
+        dt: inner step [s].
+        bandwidth: K_O [1/s].
+        bound: clamp of the estimate, shape (n,) [N m].
+
+    Attributes:
+        r: the current estimate of ``tau_d``, shape (n,) [N m].
+    """
+
+    def __init__(self, robot_model: pin.Model, dt: float, bandwidth: float, bound: np.ndarray):
+        self.model = robot_model
+        self.data = robot_model.createData()
+        self.dt = dt
+        self.a = math.exp(-bandwidth * dt)
+        self.bound = np.asarray(bound, dtype=float)
+        self.r = np.zeros(robot_model.nv)
+        self._p_prev: np.ndarray | None = None
+        self._flow_prev = np.zeros(robot_model.nv)  # tau + C^T q_dot - g of the previous step
+
+    def update(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Advance to the state ``(q, v)`` at the end of the step; return ``r`` [N m]."""
+        model, data = self.model, self.data
+        M = pin.crba(model, data, q)
+        M = np.triu(M) + np.triu(M, 1).T
+        p = M @ v
+        if self._p_prev is not None:
+            d = (p - self._p_prev) / self.dt - self._flow_prev
+            self.r = self.a * self.r + (1.0 - self.a) * d
+            np.clip(self.r, -self.bound, self.bound, out=self.r)
+        self._p_prev = p
+        C = pin.computeCoriolisMatrix(model, data, q, v)
+        g = pin.computeGeneralizedGravity(model, data, q)
+        self._beta = C.T @ v - g
+        return self.r
+
+    def applied(self, tau: np.ndarray) -> None:
+        """Record the torque applied during the coming step (after any clip) [N m]."""
+        self._flow_prev = tau + self._beta
+
+
+class ObserverController:
+    """The OSC with the momentum observer's estimate subtracted: ``tau = clip(tau_osc - r)``."""
+
+    def __init__(self, osc: OperationalSpaceController, dt: float, config: DisturbanceConfig):
+        robot = osc.robot
+        self.osc = osc
+        self.observer = MomentumObserver(
+            robot.model, dt, config.bandwidth, config.limit * robot.torque_limit
+        )
+        self._lo, self._hi = -robot.torque_limit, robot.torque_limit
+
+    def torque(self, state: RobotState, command: Command) -> np.ndarray:
+        """Compensated, clipped torques for ``command`` at ``state``, shape (n,) [N m]."""
+        r = self.observer.update(state.q, state.v)
+        qdd = self.osc.accelerations(state, command)
+        tau = pin.rnea(self.osc.robot.model, state.data, state.q, state.v, qdd) - r
+        np.clip(tau, self._lo, self._hi, out=tau)
+        self.observer.applied(tau)
+        return tau
+
+
+class IntegralController:
+    """The OSC with integral action on the task errors of Eq. 6 (module docstring)."""
+
+    def __init__(self, osc: OperationalSpaceController, dt: float, config: DisturbanceConfig):
+        g = osc.gains
+        self.osc = osc
+        self.dt = dt
+        self.ki = config.integral_gain
+        self.bound = config.integral_limit
+        self._kd_task = np.r_[np.full(3, g.pos.kd), np.full(3, g.dir.kd)]
+        self._kp_task = np.r_[np.full(3, g.pos.kp), np.full(3, g.dir.kp)]
+        self.z_task = np.zeros(6)
+        self.z_joint = np.zeros(osc.robot.nv)
+        self._hi = osc.robot.torque_limit
+        self._saturated = False
+
+    def torque(self, state: RobotState, command: Command) -> np.ndarray:
+        """Torques with the integral's shifted velocity targets, shape (n,) [N m]."""
+        g = self.osc.gains
+        y, yd, q, qd = command
+        if y is not None:
+            yd0 = yd if yd is not None else np.zeros(6)
+            if not self._saturated:
+                e = self._kp_task * (y - state.y) + self._kd_task * (yd0 - state.yd)
+                self.z_task += self.dt * e
+            a = np.clip(self.ki * self.z_task, -self.bound, self.bound)
+            self.z_task = a / self.ki
+            yd = yd0 + a / np.maximum(self._kd_task, 1e-9)
+        if q is not None:
+            qd0 = qd if qd is not None else np.zeros_like(q)
+            if not self._saturated:
+                e = g.joint.kp * (q - state.q) + g.joint.kd * (qd0 - state.v)
+                self.z_joint += self.dt * e
+            a = np.clip(self.ki * self.z_joint, -self.bound, self.bound)
+            self.z_joint = a / self.ki
+            qd = qd0 + a / max(g.joint.kd, 1e-9)
+        tau = self.osc.torque(state, Command(y, yd, q, qd))
+        self._saturated = bool(np.any(np.abs(tau) >= self._hi))
+        return tau
+
+
+InnerController = OperationalSpaceController | ObserverController | IntegralController
+
+
+def make_inner_controller(
+    osc: OperationalSpaceController, dt: float, config: DisturbanceConfig | None
+) -> InnerController:
+    """``osc`` itself for ``kind="none"`` (the paper's controller, bit for bit), else a wrapper."""
+    if config is None or config.kind == "none":
+        return osc
+    config.validate()
+    if config.kind == "observer":
+        return ObserverController(osc, dt, config)
+    return IntegralController(osc, dt, config)
