@@ -62,10 +62,10 @@ class ControllerConfig:
     margin: float = 0.1
     reg: float = 1e-6
     disturbance: str = "none"
-    observer_bandwidth: float = 50.0
-    observer_limit: float = 0.5
-    integral_gain: float = 5.0
-    integral_limit: float = 5.0
+    observer_bandwidth: float = 20.0
+    observer_limit: float = 1.0
+    integral_gain: float = 10.0
+    integral_limit: float = 50.0
 
     def compensation(self) -> DisturbanceConfig:
         """The inner controller's disturbance compensation (:mod:`amex.control.disturbance`)."""

@@ -38,10 +38,10 @@ _NOT_RESULTS = ("episodes", "log")
 _ADDED_OPTIONS: dict[tuple[str, str], object] = {
     ("perception", "preview"): 0.0,
     ("controller", "disturbance"): "none",
-    ("controller", "observer_bandwidth"): 50.0,
-    ("controller", "observer_limit"): 0.5,
-    ("controller", "integral_gain"): 5.0,
-    ("controller", "integral_limit"): 5.0,
+    ("controller", "observer_bandwidth"): 20.0,
+    ("controller", "observer_limit"): 1.0,
+    ("controller", "integral_gain"): 10.0,
+    ("controller", "integral_limit"): 50.0,
 }
 
 

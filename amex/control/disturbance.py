@@ -66,10 +66,10 @@ class DisturbanceConfig:
     """
 
     kind: str = "none"
-    bandwidth: float = 50.0
-    limit: float = 0.5
-    integral_gain: float = 5.0
-    integral_limit: float = 5.0
+    bandwidth: float = 20.0
+    limit: float = 1.0
+    integral_gain: float = 10.0
+    integral_limit: float = 50.0
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` for an unknown kind or non-positive gains and limits."""
