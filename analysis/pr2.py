@@ -85,8 +85,8 @@ STALL = {
     "no mismatch (20 Hz, camera only)": NO_MISMATCH,
     "exact goal perception (mismatch only)": ("perception.noise_std=0", "perception.latency=0"),
     "100 Hz (mismatch, camera)": ("outer_hz=100",),
-    "disturbance observer (controller.disturbance=observer)": OBSERVER,
-    "integral action (controller.disturbance=integral)": COMPENSATIONS["integral"],
+    "disturbance observer in the inner loop": OBSERVER,
+    "integral action in the inner loop": COMPENSATIONS["integral"],
 }
 FIG6_ENV = 0  # the Task-2 environment drawn
 
