@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow lint bench table figures studies paper clean
+.PHONY: install run test test-slow lint bench table figures studies paper ablation clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -51,11 +51,24 @@ studies: $(STAMP)
 	$(BIN)/python -m analysis.pr2 --episodes 30
 
 ## The whole comparison: 4 tasks x 3 methods x 150 environments, then the table.
+## EXPERIMENT=original runs the authors' setup (conf/experiment/original.yaml) into runs/paper_original.
 ## Re-running resumes: recorded episodes are kept and skipped.
-PAPER_DIR ?= runs/paper
+EXPERIMENT ?=
+PAPER_DIR ?= runs/paper$(if $(EXPERIMENT),_$(EXPERIMENT))
 paper: $(STAMP)
-	$(BIN)/amex-run -m task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=$(PAPER_DIR)
+	$(BIN)/amex-run -m $(if $(EXPERIMENT),experiment=$(EXPERIMENT)) task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=$(PAPER_DIR)
 	$(BIN)/python -m analysis.table $(PAPER_DIR)
+
+## From the authors' setup to ours one factor at a time (conf/experiment/ablation/): step 0 is
+## `make paper EXPERIMENT=original` (runs/paper_original), steps 1-4 go to runs/ablation/, step 5
+## is `make paper` (runs/paper). Resumable like every sweep.
+ABLATION_DIR ?= runs/ablation
+ablation: $(STAMP)
+	$(BIN)/amex-run -m experiment=original task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=runs/paper_original
+	for step in 1_harness 2_controller 3_methods 4_dynamic; do \
+	  $(BIN)/amex-run -m experiment=ablation/$$step task=1,2,3,4 method=amex,dmp,cr \
+	    hydra.sweep.dir=$(ABLATION_DIR)/$$step || exit $$?; \
+	done
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache

@@ -2,7 +2,8 @@
 
 * inner step: one 1 kHz step (robot state, OSC solve, inverse dynamics, mj_step), median over a
   Task-0 episode's steps, measured inside a real episode loop;
-* Task-0 episode: wall time of a whole episode with ``track`` (and its real-time factor);
+* Task-0 episode: wall time of a whole episode with ``track`` (and its real-time factor), on the
+  Panda, then per robot of ``conf/robot/`` with ``sim=dynamic`` and ``sim=kinematic``;
 * reference plan: cold solve, and a disk-cache hit;
 * each registered method's own outer step (``Method.step``), median, mean and p95 over the
   steps of Task-3 episodes (``--episodes N`` environments, default 1; ``--methods`` a subset).
@@ -79,6 +80,15 @@ def bench_episode(config: RunConfig, repeats: int = 5) -> list[float]:
         result = run_one(config, context, 0)
         times.append(time.perf_counter() - tic)
     return times + [result.final_time]
+
+
+def bench_robot_episode(robot: str, sim: str, repeats: int) -> tuple[list[float], float]:
+    """Wall times [s] of Task-0 ``track`` episodes of ``robot`` simulated as ``sim``."""
+    from amex.cli import load_config
+
+    config = load_config([f"robot={robot}", f"sim={sim}", "method=track", "task=0"])
+    walls = bench_episode(config, repeats)
+    return walls[:-1], walls[-1]
 
 
 def bench_plan(config: RunConfig, repeats: int = 3) -> tuple[list[float], list[float]]:
@@ -167,6 +177,14 @@ def _print_platform(quick: bool) -> None:
         f"Task-0 episode ({final_time:.2f} s simulated), median wall: {wall:9.3f} s  "
         f"(real-time factor {final_time / wall:.1f})"
     )
+    for robot in ("panda", "chain7", "ur5"):
+        for sim in ("dynamic", "kinematic"):
+            walls, final_time = bench_robot_episode(robot, sim, 2 if quick else 5)
+            wall = statistics.median(walls)
+            print(
+                f"Task-0 episode, {robot:<6} {sim:<9} ({final_time:.2f} s simulated), median wall:"
+                f" {wall:7.3f} s  (real-time factor {final_time / wall:.1f})"
+            )
     cold, hits = bench_plan(config, 1 if quick else 3)
     print(f"reference plan, cold solve, median of {len(cold)}: {statistics.median(cold):9.3f} s")
     hit = statistics.median(hits) * 1e3

@@ -1,9 +1,13 @@
 """Command-line entry points: ``amex-run`` (Hydra) and, later, ``amex-log``.
 
 ``amex-run`` first composes and validates every configuration the command line asks for (each
-combination of a ``-m`` sweep) with Hydra's compose API; any bad value gets one line on stderr and
-exit code 2 before Hydra creates a run directory. Only then does Hydra run the job(s). This is the
-only module that imports Hydra or OmegaConf. ``AMEX_DEBUG=1`` shows tracebacks.
+combination of a ``-m`` sweep) with Hydra's compose API, builds each method from its parameters
+(:func:`amex.runner.preflight`) and checks the launcher and the output directory
+(:mod:`amex.launch`); any bad value gets one line on stderr and exit code 2 before Hydra creates a
+run directory. Only then does Hydra run the job(s). A job's failure (a full disk, a locked
+directory) is one line too, with the number of episodes kept; Ctrl-C and SIGTERM stop the run or
+the whole sweep, workers included, and say that the same command resumes. Only this module and
+:mod:`amex.launch` import Hydra or OmegaConf. ``AMEX_DEBUG=1`` shows tracebacks.
 """
 
 from __future__ import annotations
@@ -19,7 +23,6 @@ import contextlib  # noqa: E402
 import itertools  # noqa: E402
 import re  # noqa: E402
 import sys  # noqa: E402
-from dataclasses import fields  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Any  # noqa: E402
 
@@ -27,6 +30,8 @@ from hydra.experimental.callback import Callback  # noqa: E402
 
 CONF_DIR = str(Path(__file__).resolve().parent.parent / "conf")
 PROG = "amex-run"
+#: Where this process's run or sweep writes (for the closing line of a stop or a failure).
+_OUTPUT: dict[str, Path] = {}
 
 
 class UsageError(Exception):
@@ -47,14 +52,9 @@ def _register_schemas() -> None:
             cs.store(group="method", name=name, node=cls.config_class)
 
 
-def _top_level_keys() -> list[str]:
-    from amex.config import RunConfig
-
-    return sorted(f.name for f in fields(RunConfig))
-
-
-def _explain(error: Exception) -> str:
+def explain(error: Exception, overrides: list[str] | None = None) -> str:
     """Turn a Hydra/OmegaConf composition error into one line naming value and choices."""
+    from amex.launch import group_options, valid_keys
     from amex.methods import METHODS
     from amex.scenario import TASKS
 
@@ -64,17 +64,20 @@ def _explain(error: Exception) -> str:
         parts.append(str(seen))
         seen = seen.__cause__ or seen.__context__  # type: ignore[assignment]
     text = "\n".join(parts)
-    m = re.search(r"Could not find '(\w+)/([^']*)'", text)
+    m = re.search(r"Could not find '([\w/]+)/([^'/]*)'", text)
     if m:
         group, value = m.groups()
         if group == "method":
             return f"invalid method={value!r}; valid: {', '.join(sorted(METHODS))}"
+        options = group_options(group)
+        if options:
+            return f"invalid {group}={value!r}; valid: {', '.join(options)}"
         return f"invalid {group}={value!r}; see `{PROG} --help` for the options of {group}"
-    m = re.search(r"Key '([^']+)' is not in struct", text) or re.search(
-        r"Could not override '([^']+)'", text
+    m = re.search(r"Could not override '([^']+)'", text) or re.search(
+        r"Key '([^']+)' is not in struct", text
     )
     if m:
-        return f"unknown config key {m.group(1)!r}; valid keys: {', '.join(_top_level_keys())}"
+        return f"unknown config key {m.group(1)!r}; {valid_keys(m.group(1), overrides or [])}"
     m = re.search(r"Value '([^']*)' (?:of type '\w+' )?could not be converted to (\w+)", text)
     if m:
         key = re.search(r"full_key: (\S+)", text) or re.search(r"override ([\w.]+)=", text)
@@ -93,7 +96,7 @@ def _sweep_combinations(overrides: list[str]) -> list[list[str]]:
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as e:  # Hydra's OverrideParseException and friends
-        raise UsageError(f"invalid override: {_explain(e)}") from e
+        raise UsageError(f"invalid override: {explain(e, overrides)}") from e
     choices: list[list[str]] = []
     for o in parsed:
         if o.is_hydra_override():
@@ -126,7 +129,7 @@ def load_config(overrides: list[str]) -> Any:
     except ConfigError:
         raise
     except Exception as e:  # Hydra and OmegaConf raise many types for bad input
-        raise UsageError(_explain(e)) from e
+        raise UsageError(explain(e, overrides)) from e
     finally:
         GlobalHydra.instance().clear()
     validate(config)
@@ -135,7 +138,11 @@ def load_config(overrides: list[str]) -> Any:
 
 def _validate_command_line(argv: list[str]) -> None:
     """Compose and validate every run the command line describes, or raise :class:`UsageError`."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
     from amex.errors import ConfigError
+    from amex.launch import LaunchError, check_launch
+    from amex.runner import preflight
 
     flags_with_value = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd"}
     overrides: list[str] = []
@@ -151,14 +158,16 @@ def _validate_command_line(argv: list[str]) -> None:
             continue
         overrides.append(arg)
     multirun = "-m" in argv or "--multirun" in argv
-    run_dir = next((o.split("=", 1)[1] for o in overrides if o.startswith("hydra.run.dir=")), "")
+    parsed = OverridesParser.create().parse_overrides(overrides)
+    hydra_overrides = [o.input_line for o in parsed if o.is_hydra_override() and o.input_line]
     for combo in _sweep_combinations(overrides):
         try:
             config = load_config(combo)
-        except ConfigError as e:
+            preflight(config)
+            job_dir = check_launch(combo, hydra_overrides, multirun)
+        except (ConfigError, LaunchError) as e:
             raise UsageError(str(e)) from e
-        if run_dir and not multirun:
-            _check_resumable(Path(run_dir), config)
+        _check_resumable(job_dir, config)
 
 
 def _check_resumable(run_dir: Path, config: Any) -> None:
@@ -172,6 +181,9 @@ def _check_resumable(run_dir: Path, config: Any) -> None:
         EpisodeStore.check(path, config_hash(config))
     except StoreError as e:
         raise UsageError(str(e)) from e
+
+
+_OUTPUT_CALLBACKS: list[SweepProgress] = []
 
 
 class SweepProgress(Callback):
@@ -195,6 +207,8 @@ class SweepProgress(Callback):
 
         self._stop = threading.Event()
         sweep_dir = Path(str(config.hydra.sweep.dir))
+        _OUTPUT["dir"] = sweep_dir
+        _OUTPUT_CALLBACKS.append(self)
         overrides = [str(o) for o in config.hydra.overrides.task]
         total = 0
         for combo in _sweep_combinations(overrides):
@@ -240,6 +254,7 @@ def _task(cfg: Any) -> None:
     from tqdm import tqdm
     from tqdm.contrib.logging import logging_redirect_tqdm
 
+    from amex.launch import job_guard
     from amex.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
@@ -248,19 +263,25 @@ def _task(cfg: Any) -> None:
     label = f"task {config.task} {config.method.name}"
     episodes = config.episodes
     quiet = hydra_config.mode == RunMode.MULTIRUN  # the sweep has one bar (SweepProgress)
-    with (
-        logging_redirect_tqdm(),
-        tqdm(total=episodes, desc=label, unit="ep", disable=quiet) as bar,
-    ):
-        successes = 0
+    _OUTPUT.setdefault("dir", run_dir)
+    if quiet:  # no tqdm in sweep workers: its lock is a semaphore, which a killed worker leaks
+        with job_guard(run_dir, multirun=True):
+            summary = run(config, run_dir)
+    else:
+        with (
+            job_guard(run_dir, multirun=False),
+            logging_redirect_tqdm(),
+            tqdm(total=episodes, desc=label, unit="ep") as bar,
+        ):
+            successes = 0
 
-        def progress(env: int, result: Any) -> None:
-            nonlocal successes
-            successes += int(result.success)
-            bar.set_postfix(success=f"{successes}/{env + 1}")
-            bar.update(1)
+            def progress(env: int, result: Any) -> None:
+                nonlocal successes
+                successes += int(result.success)
+                bar.set_postfix(success=f"{successes}/{env + 1}")
+                bar.update(1)
 
-        summary = run(config, run_dir, progress)
+            summary = run(config, run_dir, progress)
     s = summary["success"]["mean"]
     t = summary["final_time"]
     print(
@@ -271,20 +292,62 @@ def _task(cfg: Any) -> None:
     print(run_dir, flush=True)
 
 
+def _closing_line(error: BaseException) -> tuple[str, int]:
+    """The last line of a stopped or failed run, and its exit code."""
+    from amex.launch import JobFailed
+    from amex.processes import count_rows, signal_code
+
+    directory = _OUTPUT.get("dir")
+    kept = f"{count_rows(directory)} episodes kept in {directory}" if directory else ""
+    if isinstance(error, OSError):  # e.g. Hydra writing .hydra/ on a full disk
+        what = f"cannot write {error.filename}" if error.filename else "a write failed"
+        error = JobFailed(f"{what}: {error.strerror or error}", True)
+    elif isinstance(error, Exception):  # anything else Hydra or a job raised
+        first = (str(error).strip().splitlines() or [""])[0]
+        error = JobFailed(f"{type(error).__name__}: {first} (AMEX_DEBUG=1 shows the traceback)")
+    if isinstance(error, JobFailed):
+        if not error.resumable:
+            return f"{PROG}: error: {error.message}", 2
+        tail = f"; {kept}; fix the cause and run the same command to resume" if kept else ""
+        return f"{PROG}: error: {error.message}{tail}", 2
+    name = str(error) or "SIGINT"
+    tail = f": {kept}; the same command resumes" if kept else ": nothing written yet"
+    return f"{PROG}: stopped by {name}{tail}", signal_code(error)
+
+
 def run_main() -> None:
     """``amex-run``: validate the command line, then hand it to Hydra."""
-    argv = sys.argv[1:]
+    from amex.launch import JobFailed
+    from amex.processes import LAUNCHER_PID, signals_raise
+
+    multirun_flags = [a for a in sys.argv[1:] if a in ("-m", "--multirun")]
+    argv = multirun_flags + [a for a in sys.argv[1:] if a not in multirun_flags]
+    sys.argv[1:] = argv  # Hydra's parser wants -m before the overrides; accept it anywhere
     debug = os.environ.get("AMEX_DEBUG") == "1"
     informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
-    if not informational.intersection(argv):
-        try:
-            _validate_command_line(argv)
-        except UsageError as e:
-            if debug:
-                raise
-            _fail(str(e))
-    import hydra
+    try:
+        with signals_raise():
+            if not informational.intersection(argv):
+                try:
+                    _validate_command_line(argv)
+                except UsageError as e:
+                    if debug:
+                        raise
+                    _fail(str(e))
+            import hydra
 
-    _register_schemas()
-    main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(_task)
-    main()
+            _register_schemas()
+            main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(
+                _task
+            )
+            os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
+            os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors, we print one line
+            main()
+    except (JobFailed, KeyboardInterrupt, Exception) as e:
+        if debug:
+            raise
+        for callback in _OUTPUT_CALLBACKS:  # stop the sweep's progress bar before the last line
+            callback.on_multirun_end(None)
+        line, code = _closing_line(e)
+        print(line, file=sys.stderr, flush=True)
+        raise SystemExit(code) from None

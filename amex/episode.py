@@ -5,6 +5,21 @@ returns a :class:`~amex.control.osc.Command`. Inner loop (``inner_hz``, 1 kHz): 
 operational-space controller turns the held command into torques with Pinocchio's model, and MuJoCo
 integrates one step. The simulator never knows which method runs; the method never touches MuJoCo.
 
+Simulation. ``dynamic`` (default): the torque ``tau = M q_ddot* + h`` (clipped to the limits) is
+applied in MuJoCo, which integrates one step (semi-implicit Euler). ``kinematic``: the controller's
+``q_ddot*`` is integrated directly, ``q += dt q_dot; q_dot += dt q_ddot*`` (explicit Euler, as the
+authors' harness did: its physics call was commented out), so masses, torque limits and model
+mismatch play no role and an episode costs no inverse dynamics and no MuJoCo step. MuJoCo still
+places the arm's geoms at every step of a scene with obstacles and detects contacts
+(``mj_kinematics`` + ``mj_collision``), so ``collided`` means the same in both; the arm passes
+through what it touches. ``sum_sq_acc`` sums MuJoCo's ``qacc`` (dynamic) or ``q_ddot*``
+(kinematic); the joint angles of every inner step are kept for ``sum_sq_acc_paper``
+(:func:`amex.metrics.paper_sum_sq_acc`).
+
+State lag (``LoopConfig.state_lag``): in the authors' loop the task state a method read, and the
+TCP the stop rule measured, were computed before the last inner integration step, so they were one
+inner step (1 ms) old; the controller's own state was current.
+
 Termination: the episode stops when the TCP is within ``stop_radius`` of the current goal (checked
 at every inner step, before the command is applied), else at ``max_time``. Success is judged on the
 final distance (``success_radius``, the paper's 0.03 m). Non-finite or diverging states, and
@@ -29,16 +44,18 @@ from typing import Any, Protocol
 import mujoco
 import numpy as np
 
+from amex.control import kernels
 from amex.control.collision import CollisionModel
 from amex.control.disturbance import DisturbanceConfig, make_inner_controller
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
 from amex.errors import AmexError, ConfigError, SimulationError
 from amex.methods.base import Method, Observation
-from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult
+from amex.metrics import SUCCESS_005_RADIUS, EpisodeResult, paper_sum_sq_acc
 from amex.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.robot import RobotModel
 from amex.scenario import Scenario
+from amex.schema import check_tree
 
 
 @dataclass(frozen=True)
@@ -54,6 +71,11 @@ class LoopConfig:
         stop_radius: TCP-goal distance at which the episode stops [m].
         speed_limit_factor: the simulation counts as diverged when a joint moves faster than this
             many times its rated speed [-].
+        kinematic: integrate the controller's accelerations instead of simulating the dynamics
+            (module notes).
+        state_lag: methods see the task state (y, y_dot) of the previous inner step, and the
+            stop rule its TCP, as in the authors' harness (module notes); joint states are
+            current either way.
     """
 
     outer_hz: float = 100.0
@@ -62,6 +84,8 @@ class LoopConfig:
     success_radius: float = 0.03
     stop_radius: float = 0.006
     speed_limit_factor: float = 5.0
+    kinematic: bool = False
+    state_lag: bool = False
 
     @property
     def substeps(self) -> int:
@@ -70,6 +94,7 @@ class LoopConfig:
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` on rates or limits the loop cannot run with."""
+        check_tree(self)  # finite, >= 0
         if not self.outer_hz > 0:
             raise ConfigError.invalid("outer_hz", self.outer_hz, "a rate > 0 [Hz]")
         if not self.inner_hz > 0:
@@ -212,9 +237,6 @@ def run_episode(
     mjm, mjd = sim.model, sim.data
     substeps = loop.substeps
     dt = 1.0 / loop.inner_hz
-    # the inner controller: the OSC itself, or the OSC with disturbance compensation (a
-    # kinematic simulation has no dynamics to compensate: pass disturbance=None there)
-    inner = make_inner_controller(osc, dt, disturbance)
     n_steps = int(math.floor(loop.max_time * loop.inner_hz + 1e-9))
     speed_limit = loop.speed_limit_factor * robot.velocity_limit
     goal_axis = scenario.goal_axis
@@ -227,6 +249,17 @@ def run_episode(
     goal = scenario.goal_at(0.0)
     gx, gy, gz = goal.tolist()
     goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
+    kinematic = loop.kinematic
+    # the dynamic step's controller: the OSC itself, or the OSC with disturbance compensation (a
+    # kinematic simulation has no dynamics to compensate: it never uses one)
+    inner = make_inner_controller(osc, dt, None if kinematic else disturbance)
+    detect_contacts = kinematic and scenario.n_obstacles > 0
+    no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
+    q_history = np.empty((n_steps + 1, robot.nv))  # joint angles of every inner step
+    lag = loop.state_lag
+    seen_tcp: list[float] | None = None  # the lagging TCP position of the stop rule
+    seen_y: np.ndarray | None = None  # the lagging task state methods see
+    seen_yd: np.ndarray | None = None
     compute_times: list[float] = []
     sum_sq_acc = 0.0
     collided = False
@@ -243,10 +276,11 @@ def run_episode(
             q = mjd.qpos.copy() if outer else mjd.qpos
             v = mjd.qvel.copy() if outer else mjd.qvel
             state = RobotState(robot, pdata, q, v)
+            q_history[k] = q
             if t <= goal_moves_until:
                 goal = scenario.goal_at(t)
                 gx, gy, gz = goal.tolist()
-            px, py, pz = state.y_list[:3]
+            px, py, pz = state.y_list[:3] if seen_tcp is None else seen_tcp
             distance = math.sqrt((px - gx) ** 2 + (py - gy) ** 2 + (pz - gz) ** 2)
             if distance <= loop.stop_radius:
                 break
@@ -263,8 +297,8 @@ def run_episode(
                     t=t,
                     q=q,
                     qd=v,
-                    y=state.y,
-                    yd=state.yd,
+                    y=state.y if seen_y is None else seen_y,
+                    yd=state.yd if seen_yd is None else seen_yd,
                     goal=np.concatenate([seen, goal_axis]),
                     obstacles=obstacles,
                     obstacle_radii=radii,
@@ -274,11 +308,26 @@ def run_episode(
                 tic = time.perf_counter_ns()
                 command = method.step(obs)
                 compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
+                if method.finished:  # the method ended the execution (the authors' CR)
+                    break
                 _check_command(command)
-            tau = inner.torque(state, command)
-            mjd.qfrc_applied[:] = tau
-            mujoco.mj_step(mjm, mjd)
-            qacc = mjd.qacc
+            if lag:  # what the next step's stop rule and observation see
+                seen_tcp = state.y_list[:3]
+                if (k + 1) % substeps == 0:
+                    seen_y, seen_yd = state.y, state.yd
+            if kinematic:
+                qacc = osc.accelerations(state, command)
+                tau = no_torque
+                kernels.euler_inplace(mjd.qpos, mjd.qvel, qacc, dt)
+                mjd.time += dt
+                if detect_contacts:
+                    mujoco.mj_kinematics(mjm, mjd)
+                    mujoco.mj_collision(mjm, mjd)
+            else:
+                tau = inner.torque(state, command)
+                mjd.qfrc_applied[:] = tau
+                mujoco.mj_step(mjm, mjd)
+                qacc = mjd.qacc
             sum_sq_acc += float(qacc @ qacc)
             if mjd.ncon:
                 collided = True
@@ -292,6 +341,7 @@ def run_episode(
     except AmexError as e:
         failure = f"solver: {e}"
     final_time = t
+    steps = q_history[: k + 1]
     result = EpisodeResult(
         task=scenario.task,
         method=method.name,
@@ -306,6 +356,8 @@ def run_episode(
         compute_time_median=float(np.median(compute_times)) if compute_times else math.nan,
         compute_time_mean=float(np.mean(compute_times)) if compute_times else math.nan,
         failure=failure,
+        sum_sq_acc_paper=paper_sum_sq_acc(steps, dt) if np.isfinite(steps).all() else math.nan,
+        int_sq_acc=float(sum_sq_acc) * dt,
     )
     if recorder is not None:
         recorder.finish(result)

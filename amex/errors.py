@@ -20,7 +20,13 @@ class ConfigError(AmexError):
     def invalid(cls, key: str, value: object, valid: str | Iterable[object]) -> ConfigError:
         """Build the standard message ``invalid <key>=<value>; valid: <choices>``."""
         choices = valid if isinstance(valid, str) else ", ".join(str(v) for v in valid)
+        if isinstance(value, (list, tuple)):  # numpy scalars print as np.float64(...)
+            value = [v.item() if hasattr(v, "item") else v for v in value]
         return cls(f"invalid {key}={value!r}; valid: {choices}")
+
+
+class InputError(AmexError):
+    """A function got input it cannot use (e.g. a non-finite number); nothing was changed."""
 
 
 class SolverError(AmexError):

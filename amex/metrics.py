@@ -11,6 +11,16 @@
 * ``final_time``: when the episode stopped (goal reached, ``max_time`` or a failure) [s].
 * ``sum_sq_acc``: sum over all simulation steps (1 kHz) and all joints of the squared joint
   acceleration, ``sum_k sum_j qdd_j(k)^2`` [rad^2/s^4], without a dt factor, as the original.
+  It grows with the rate: doubling ``inner_hz`` doubles it.
+* ``int_sq_acc``: the same as an integral, ``int ||qdd||^2 dt = sum_k ||qdd(k)||^2 dt``
+  [rad^2/s^3]: independent of the simulation rate.
+* ``sum_sq_acc_paper``: the figure of the paper's Fig. 5 as the authors computed it
+  (``matlab/evalRun.m``): the joint angles of every inner step written with 6 significant digits
+  (:func:`round_significant`), differentiated twice with MATLAB's ``gradient`` (central
+  differences inside, one-sided at the ends; :func:`paper_sum_sq_acc`), squared and summed over
+  samples and joints, no dt. The rounding noise of about 1e-6 rad in q becomes ~1 rad/s^2 in the
+  second difference at 1 ms, so at |q| >= 1 rad it adds roughly 3 (rad/s^2)^2 per joint and
+  sample: most of the paper's AMEX and CR values.
 * ``compute_time_median`` / ``compute_time_mean``: wall time of the method's own outer step
   (``Method.step``), median and mean over the episode [s].
 * ``failure``: empty, or why the episode ended early (``nan``, ``diverged``, ``solver: ...``).
@@ -48,6 +58,8 @@ class EpisodeResult:
     compute_time_median: float
     compute_time_mean: float
     failure: str
+    sum_sq_acc_paper: float = math.nan
+    int_sq_acc: float = math.nan
 
     def as_row(self) -> dict[str, Any]:
         """The row as a dict in column order."""
@@ -55,6 +67,8 @@ class EpisodeResult:
 
 
 COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(EpisodeResult))
+#: The columns every episodes.csv has; later ones (added metrics) may be missing in old files.
+REQUIRED_COLUMNS: tuple[str, ...] = COLUMNS[: COLUMNS.index("failure") + 1]
 #: Columns whose values depend on the machine's speed, not on the simulation.
 TIMING_COLUMNS = ("compute_time_median", "compute_time_mean")
 #: The metrics aggregated as mean and 2 std (Fig. 5's columns plus ours).
@@ -65,6 +79,8 @@ AGGREGATED = (
     "final_distance",
     "final_time",
     "sum_sq_acc",
+    "sum_sq_acc_paper",
+    "int_sq_acc",
     "compute_time_median",
     "compute_time_mean",
 )
@@ -88,3 +104,29 @@ def summarize(results: Sequence[EpisodeResult]) -> dict[str, Any]:
     for key in AGGREGATED:
         summary[key] = mean_2std([float(r[key]) for r in rows])
     return summary
+
+
+def round_significant(x: np.ndarray, digits: int = 6) -> np.ndarray:
+    """``x`` rounded to ``digits`` significant digits, as ``printf("%g")`` writes it.
+
+    Vectorized (``round(x 10^k) / 10^k`` with ``k = digits - 1 - floor(log10 |x|)``); it can differ
+    from the text in the last digit on exact ties. Zeros and non-finite values pass unchanged.
+    """
+    x = np.asarray(x, dtype=float)
+    out = x.copy()
+    ok = np.isfinite(x) & (x != 0.0)
+    scale = 10.0 ** (digits - 1 - np.floor(np.log10(np.abs(x[ok]))))
+    out[ok] = np.round(x[ok] * scale) / scale
+    return out
+
+
+def paper_sum_sq_acc(q: np.ndarray, dt: float, digits: int = 6) -> float:
+    """The paper's "sum of squared accelerations" of joint samples ``q`` (T, n) at period ``dt``.
+
+    See the module notes: 6 significant digits, MATLAB's ``gradient`` twice, no dt.
+    """
+    if len(q) < 2:
+        return 0.0
+    rounded = round_significant(q, digits)
+    qdd = np.gradient(np.gradient(rounded, dt, axis=0), dt, axis=0)
+    return float(np.sum(qdd * qdd))

@@ -1,16 +1,19 @@
 """A run: the reference plan, then ``episodes`` environments of one task with one method.
 
 Writes into the run directory ``episodes.csv`` (one row per episode, appended durably as each
-episode ends; see :mod:`amex.store`) and ``summary.json`` (the aggregates). No Hydra here:
-:func:`run` takes a validated :class:`~amex.config.RunConfig` and a directory, so scripts can
-call it directly.
+episode ends; see :mod:`amex.store`) and ``summary.json`` (the aggregates of the requested
+episodes, replaced atomically at the end; removed when a run starts, so it never describes an
+earlier run). No Hydra here: :func:`run` takes a :class:`~amex.config.RunConfig` and a directory,
+so scripts can call it directly. Everything is checked before anything is written
+(:func:`preflight`), and the directory is locked while the run writes
+(:class:`~amex.durable.RunLock`): a second run into it is refused.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
-import os
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,13 +22,17 @@ from typing import Any
 import numpy as np
 
 from amex.config import RunConfig, validate
+from amex.durable import RunLock, WriteError, replace_durably
 from amex.episode import run_episode
+from amex.errors import ConfigError
 from amex.methods import get_method
 from amex.metrics import EpisodeResult, summarize
-from amex.plan.cache import reference_plan
+from amex.plan.cache import reference_costs, reference_plan
+from amex.plan.problem import joint_metric
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
-from amex.scenario import make_scenario
+from amex.scenario import make_scenario, plan_goal
+from amex.schema import field_names
 from amex.store import EpisodeStore, config_hash, scene_hash
 
 log = logging.getLogger(__name__)
@@ -42,13 +49,54 @@ class RunContext:
     plan: ReferencePlan
 
 
+def stand_in_plan(robot: RobotModel, config: RunConfig) -> ReferencePlan:
+    """A plan of the reference plan's shape, without solving: at rest in q0, y straight to the goal.
+
+    Methods check their parameters against it (:func:`preflight`) in milliseconds.
+    """
+    n = config.plan.steps + 1
+    y0 = robot.task_position(robot.q0)
+    goal_pos = plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation)
+    goal = np.concatenate([goal_pos, config.scenario.goal_axis])
+    u = np.linspace(0.0, 1.0, n)[:, None]
+    y = (1.0 - u) * y0 + u * goal
+    metric = joint_metric(config.plan.metric, robot.nv)
+    q = np.repeat(robot.q0[None], n, axis=0)
+    return ReferencePlan(q=q, y=y, dt=config.plan.dt, metric=metric)
+
+
+def preflight(config: RunConfig) -> None:
+    """Validate ``config`` and build what a run builds from it, cheaply; nothing is written.
+
+    The robot is loaded, the plan's costs and the method are built (the method on
+    :func:`stand_in_plan`), so a bad value anywhere raises :class:`ConfigError` here, before a run
+    directory exists, instead of in the first episode.
+    """
+    validate(config)
+    robot = load_robot(config.robot)
+    reference_costs(robot, config.plan)
+    name = config.method.name
+    try:
+        get_method(name).from_plan(
+            stand_in_plan(robot, config), config.method_config(), 1.0 / config.outer_hz, robot
+        )
+    except ConfigError as e:
+        message = str(e)
+        param = message.removeprefix("invalid ").split("=", 1)[0]
+        if message.startswith("invalid ") and param in field_names(config.method):
+            raise ConfigError(f"invalid method.{message.removeprefix('invalid ')}") from e
+        raise ConfigError(f"method={name}: {message}") from e
+    except Exception as e:  # a plugin's own checks may raise anything
+        raise ConfigError(f"method={name} cannot be built from its parameters: {e}") from e
+
+
 def prepare(config: RunConfig) -> RunContext:
     """Load the robot and get the reference plan (solved, or from the disk cache)."""
-    robot = load_robot(config.robot.name, tuple(config.robot.q0))
+    robot = load_robot(config.robot)
     plan = reference_plan(
         robot,
         config.plan,
-        np.asarray(config.scenario.reference_goal, dtype=float),
+        plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation),
         np.asarray(config.scenario.goal_axis, dtype=float),
     )
     return RunContext(robot, plan)
@@ -61,8 +109,10 @@ def run_one(
 
     With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
     """
-    method_cls = get_method(config.method.name)
-    method = method_cls.from_plan(context.plan, config.method, 1.0 / config.outer_hz, context.robot)
+    method_cls = get_method(config.method.name, config.implementation)
+    method = method_cls.from_plan(
+        context.plan, config.method_config(), 1.0 / config.outer_hz, context.robot
+    )
     scenario = make_scenario(
         config.scenario,
         config.task,
@@ -97,10 +147,28 @@ def run(
 
     Environments already in ``run_dir/episodes.csv`` under the same configuration hash are
     skipped (resume after a crash or Ctrl-C); ``progress`` is called for those too, first.
+
+    Raises:
+        ConfigError: a bad configuration (before anything is written).
+        LockedError: another run is writing into ``run_dir``.
+        WriteError: a row or the summary could not be written (e.g. a full disk); every row
+            written before is kept and the same call resumes.
     """
-    validate(config)
-    run_dir.mkdir(parents=True, exist_ok=True)
+    preflight(config)
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise WriteError(run_dir, e.strerror or str(e)) from e
+    with RunLock(run_dir):
+        return _run_locked(config, run_dir, progress)
+
+
+def _run_locked(
+    config: RunConfig, run_dir: Path, progress: Callable[[int, EpisodeResult], None] | None
+) -> dict:
     store = EpisodeStore(run_dir / EPISODES_CSV, config_hash(config), scene_hash(config))
+    with contextlib.suppress(OSError):  # from an earlier run; written anew at the end
+        (run_dir / SUMMARY_JSON).unlink()
     for env in sorted(store.done):
         if env < config.episodes and progress is not None:
             progress(env, store.done[env])
@@ -126,7 +194,6 @@ def run(
             "scene_hash": store.scene_hash,
         }
     )
-    tmp = run_dir / (SUMMARY_JSON + ".tmp")
-    tmp.write_text(json.dumps(summary, indent=2) + "\n")
-    os.replace(tmp, run_dir / SUMMARY_JSON)
+    summary["recorded"] = len(store.done)  # rows in episodes.csv, >= episodes after a shorter rerun
+    replace_durably(run_dir / SUMMARY_JSON, (json.dumps(summary, indent=2) + "\n").encode())
     return summary

@@ -1,4 +1,4 @@
-"""The benchmark's scenes: Task 0-4 of the paper's Section IV-A, scaled to the Panda.
+"""The benchmark's scenes: Task 0-4 of the paper's Section IV-A, scaled to the robot.
 
 Every scene is a pure function of ``(config, task, seed, env)``: environment ``env`` of a task is
 the same for every method (a paired comparison). Goal and obstacle motions are closed-form
@@ -15,18 +15,26 @@ Tasks (DESIGN.md, "The original experiment" and "Our benchmark"):
 * 4: as 3, and the obstacle moves with a per-axis Gaussian velocity for the whole run.
 
 Lengths and speeds of the original scenes are given in config at their original values and
-multiplied by ``scale`` (the Panda's reach is about 0.3x the original arm's).
+multiplied by ``scale`` (:mod:`amex.scaling`; the Panda's reach is about 0.3x the original
+arm's). The reference goal follows from the robot's start: its TCP plus the original
+start-to-goal offset times ``scale`` (:func:`reference_goal`), unless the config states it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from amex.errors import ConfigError
+from amex.scaling import scaled, to_scene_units
+from amex.schema import SIGNED
 
 TASKS = (0, 1, 2, 3, 4)
+#: The original start-to-goal offset: reference goal (0.75, -1.4, 1.7) minus the chain's start
+#: TCP (0.3648, -2.5475, 1.8312), rounded to the millimetre [m, original units].
+ORIGINAL_REFERENCE_OFFSET = (0.385, 1.147, -0.131)
 
 
 @dataclass
@@ -35,8 +43,11 @@ class ScenarioConfig:
 
     Attributes:
         scale: factor from the original scenes to ours (lengths and speeds) [-].
-        reference_goal: goal of the reference plan, Task 0's goal [m] (not scaled).
-        goal_axis: required TCP z-axis at the goal (unit; top-down approach) [-].
+        reference_goal: goal of the reference plan, Task 0's goal [m] (not scaled; default: the
+            default robot's, the Panda); empty: the robot's start TCP plus ``reference_offset``
+            (:func:`reference_goal`).
+        reference_offset: start-to-goal offset of the reference plan (original units) [m].
+        goal_axis: required TCP z-axis at the goal (unit) [-].
         box_size: Task 1 box around the reference goal (original 0.7 x 0.8 x 1.8 m) [m].
         box_grid: grid points along x, y, z in the box (original 3 x 5 x 10).
         goal_speed_std: std of each goal velocity component (original 0.1 m/s) [m/s].
@@ -45,26 +56,39 @@ class ScenarioConfig:
         plane_grid: grid points along y, z on the plane (original 10 x 15 = 150).
         obstacle_radius: sphere radius (original 0.1 m) [m].
         obstacle_speed_std: std of each obstacle velocity component, Task 4 (original 0.1) [m/s].
+        plane_reference: Tasks 3-4 plan their reference to the plane's centre, as the original
+            (default: every task plans to ``reference_goal``, the box centre).
     """
 
     scale: float = 0.2
     reference_goal: list[float] = field(default_factory=lambda: [0.384, 0.229, 0.461])
+    reference_offset: list[float] = field(
+        default_factory=lambda: list(ORIGINAL_REFERENCE_OFFSET), metadata=scaled(1)
+    )
     goal_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, -1.0])
-    box_size: list[float] = field(default_factory=lambda: [0.7, 0.8, 1.8])
+    box_size: list[float] = field(default_factory=lambda: [0.7, 0.8, 1.8], metadata=scaled(1))
     box_grid: list[int] = field(default_factory=lambda: [3, 5, 10])
-    goal_speed_std: float = 0.1
+    goal_speed_std: float = field(default=0.1, metadata=scaled(1))
     goal_motion_window: float = 0.7
-    plane_offset: float = 0.35
+    # either side of the box centre
+    plane_offset: float = field(default=0.35, metadata={**scaled(1), **SIGNED})
     plane_grid: list[int] = field(default_factory=lambda: [15, 10])
-    obstacle_radius: float = 0.1
-    obstacle_speed_std: float = 0.1
+    obstacle_radius: float = field(default=0.1, metadata=scaled(1))
+    obstacle_speed_std: float = field(default=0.1, metadata=scaled(1))
+    plane_reference: bool = False
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` for values no scene can be built from."""
         if not self.scale > 0:
             raise ConfigError.invalid("scenario.scale", self.scale, "a number > 0")
-        if len(self.reference_goal) != 3:
-            raise ConfigError.invalid("scenario.reference_goal", self.reference_goal, "[x, y, z]")
+        if len(self.reference_goal) not in (0, 3):
+            raise ConfigError.invalid(
+                "scenario.reference_goal", self.reference_goal, "[x, y, z] [m], or [] (derived)"
+            )
+        if len(self.reference_offset) != 3:
+            raise ConfigError.invalid(
+                "scenario.reference_offset", self.reference_offset, "[x, y, z] [m]"
+            )
         axis = np.asarray(self.goal_axis, dtype=float)
         if axis.shape != (3,) or not np.isclose(np.linalg.norm(axis), 1.0):
             raise ConfigError.invalid("scenario.goal_axis", self.goal_axis, "a unit 3-vector")
@@ -134,14 +158,49 @@ def box_grid(center: np.ndarray, size: np.ndarray, counts: list[int]) -> np.ndar
     return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
 
 
+def reference_goal(config: ScenarioConfig, start_tcp: np.ndarray) -> np.ndarray:
+    """The reference plan's goal, shape (3,) [m].
+
+    ``config.reference_goal`` if stated, else the robot's start TCP ``start_tcp`` plus the
+    original start-to-goal offset times the scale.
+    """
+    if len(config.reference_goal):
+        return np.asarray(config.reference_goal, dtype=float)
+    offset = to_scene_units(config, config.scale).reference_offset
+    return np.asarray(start_tcp, dtype=float) + np.asarray(offset, dtype=float)
+
+
+def with_reference_goal(config: ScenarioConfig, start_tcp: np.ndarray) -> ScenarioConfig:
+    """A copy of ``config`` whose ``reference_goal`` is stated (:func:`reference_goal`)."""
+    goal = reference_goal(config, start_tcp)
+    return dataclasses.replace(config, reference_goal=[float(x) for x in goal])
+
+
+def plan_goal(config: ScenarioConfig, task: int, start_tcp: np.ndarray) -> np.ndarray:
+    """The goal of the reference plan of ``task``, shape (3,) [m].
+
+    :func:`reference_goal`, or with ``plane_reference`` the Task-3/4 plane's centre for those.
+    """
+    goal = reference_goal(config, start_tcp)
+    if config.plane_reference and task in (3, 4):
+        offset = to_scene_units(config, config.scale).plane_offset
+        goal = goal + np.array([offset, 0.0, 0.0])
+    return goal
+
+
 def goal_grid(config: ScenarioConfig, task: int) -> np.ndarray:
-    """Candidate goal start positions of Task 1 (box) or Task 3/4 (plane), shape (n, 3) [m]."""
-    s = config.scale
+    """Candidate goal start positions of Task 1 (box) or Task 3/4 (plane), shape (n, 3) [m].
+
+    ``config.reference_goal`` must be stated (:func:`with_reference_goal`).
+    """
+    scene = to_scene_units(config, config.scale)
     center = np.asarray(config.reference_goal, dtype=float)
-    size = s * np.asarray(config.box_size, dtype=float)
+    if center.shape != (3,):
+        raise ConfigError("goal_grid needs a stated scenario.reference_goal (with_reference_goal)")
+    size = np.asarray(scene.box_size, dtype=float)
     if task == 1:
         return box_grid(center, size, list(config.box_grid))
-    plane_center = center + np.array([s * config.plane_offset, 0.0, 0.0])
+    plane_center = center + np.array([scene.plane_offset, 0.0, 0.0])
     ny, nz = config.plane_grid
     return box_grid(plane_center, np.array([0.0, size[1], size[2]]), [1, ny, nz])
 
@@ -170,9 +229,10 @@ def make_scenario(
     """
     if task not in TASKS:
         raise ConfigError.invalid("task", task, TASKS)
-    s = config.scale
+    config = with_reference_goal(config, start_tcp)
+    scene = to_scene_units(config, config.scale)
     rng = np.random.default_rng(np.random.SeedSequence([seed, task, env]))
-    reference_goal = np.asarray(config.reference_goal, dtype=float)
+    reference = np.asarray(config.reference_goal, dtype=float)
     goal_velocity = np.zeros(3)
     obstacle_start = np.zeros((0, 3))
     obstacle_velocity = np.zeros((0, 3))
@@ -182,15 +242,15 @@ def make_scenario(
         order = np.random.default_rng(np.random.SeedSequence([seed, task])).permutation(len(grid))
         goal_start = grid[order[env % len(grid)]]
     else:
-        goal_start = reference_goal.copy()
+        goal_start = reference.copy()
     if task >= 2:
-        goal_velocity = rng.normal(0.0, s * config.goal_speed_std, size=3)
+        goal_velocity = rng.normal(0.0, scene.goal_speed_std, size=3)
     if task >= 3:
         obstacle_start = ((np.asarray(start_tcp, dtype=float) + goal_start) / 2)[None, :]
-        radii = np.array([s * config.obstacle_radius])
+        radii = np.array([scene.obstacle_radius])
         obstacle_velocity = np.zeros((1, 3))
     if task == 4:
-        obstacle_velocity = rng.normal(0.0, s * config.obstacle_speed_std, size=(1, 3))
+        obstacle_velocity = rng.normal(0.0, scene.obstacle_speed_std, size=(1, 3))
     return Scenario(
         task=task,
         env=env,

@@ -302,7 +302,7 @@ def _render(episodes: dict[str, Episode], backend: str, width: int, height: int)
 
     first = next(iter(episodes.values()))
     config = load_config([f"task={TASK}"])
-    robot = load_robot(config.robot.name, tuple(config.robot.q0))
+    robot = load_robot(config.robot)
     scenario = make_scenario(config.scenario, TASK, SEED, ENV, first.tcp[0], 4.0)
     sim = Simulation(robot, scenario, 1000.0)
     model, data = sim.model, sim.data

@@ -33,7 +33,7 @@ import pandas as pd
 
 from amex.argparsing import OneLineParser
 from amex.errors import AmexError
-from amex.store import StoreError, read_rows
+from amex.store import HASH_COLUMNS, StoreError, parse_result, read_rows
 
 HERE = Path(__file__).resolve().parent
 PAPER_CSV = HERE / "paper_fig5.csv"
@@ -61,7 +61,9 @@ def load_runs(root: Path) -> pd.DataFrame:
             continue
         if "scene_hash" not in rows[0]:
             raise TableError(f"{path}: written by an older amex without configuration hashes")
-        frame = pd.DataFrame(rows)
+        # typed by the store's own parser, as the resume reads them (read_rows checked every row)
+        typed = [{**parse_result(r).as_row(), **{h: r[h] for h in HASH_COLUMNS}} for r in rows]
+        frame = pd.DataFrame(typed)
         frame["file"] = str(path)
         frames.append(frame)
     if not frames:

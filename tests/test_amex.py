@@ -210,13 +210,22 @@ def test_guard_robot_does_not_move():
 
 
 def test_guard_zero_commanded_step():
-    """A reference at rest (constant): every commanded step is 0, delta_y := 1, no NaN."""
-    Y = np.ones((N + 1, 2))
+    """A reference at rest for its first half: those commanded steps are 0, delta_y := 1, no NaN."""
+    u = np.clip(np.linspace(-1.0, 1.0, N + 1), 0.0, None)[:, None]
+    Y = np.hstack([u**3, 0.5 * u**3])  # rest, then a smooth start
     amex = AMEX(Y, T_REF, DT)
-    targets, _ = run(amex, lambda k: Y[-1], Y[0], 5)
-    for t in targets:
+    targets, _ = run(amex, lambda k: Y[-1], Y[0], 60)
+    resting = [t for t in targets if t.s < 0.4]
+    assert len(resting) > 30
+    for t in resting:
         assert t.delta_y == 1.0
         assert np.all(np.isfinite(t.y_star)) and np.all(np.isfinite(t.yd_star))
+
+
+def test_reference_that_does_not_move_is_rejected():
+    """Start = end: Eq. 8's delta_g would be 0 for ever and AMEX would never move."""
+    with pytest.raises(ConfigError, match="must move"):
+        AMEX(np.ones((N + 1, 2)), T_REF, DT)
 
 
 def test_guard_phase_near_one_and_final_approach():

@@ -69,16 +69,20 @@ def test_collision_jacobian_matches_finite_differences(robot, seed):
     assert np.abs(terms.J - J_fd).max() < 1e-5
 
 
+ORIGINAL = {"reg": 1e-3, "metric": "original", "drift": False, "joint_only": True}
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 @pytest.mark.parametrize("kind", ["task", "joint", "both", "none"])
 @pytest.mark.parametrize("near", [True, False], ids=["in_margin", "clear"])
-def test_compiled_objective_equals_task_by_task_objective(robot, seed, kind, near):
+@pytest.mark.parametrize("options", [{}, ORIGINAL], ids=["ours", "original"])
+def test_compiled_objective_equals_task_by_task_objective(robot, seed, kind, near, options):
     rng = np.random.default_rng(seed)
     collision = CollisionModel(robot, [0.02])
     q = robot.q0 + rng.normal(scale=0.2, size=7)
     tcp = robot.tcp_pose(q).translation
     collision.set_obstacles((tcp + np.array([0.0, 0.0, -0.05 if near else -0.5]))[None])
-    gains = OSCGains(damping=PD(3.0, 10.0, 0.01))  # a posture stiffness too
+    gains = OSCGains(damping=PD(3.0, 10.0, 0.01), **options)  # a posture stiffness too
     osc = OperationalSpaceController(robot, gains, collision)
     state = _state(robot, q, rng.normal(size=7))
     task = kind in ("task", "both")
@@ -96,6 +100,28 @@ def test_compiled_objective_equals_task_by_task_objective(robot, seed, kind, nea
     assert np.allclose(fast.b, slow.b, rtol=1e-12, atol=1e-10)
     qdd = osc.accelerations(state, command)  # compiled Cholesky against LAPACK
     assert np.allclose(qdd, solve_objective(slow), rtol=1e-9, atol=1e-9)
+
+
+def test_the_original_controller_options_change_what_they_say(robot):
+    rng = np.random.default_rng(4)
+    collision = CollisionModel(robot, [0.02])
+    q = robot.q0 + rng.normal(scale=0.2, size=7)
+    collision.set_obstacles((robot.tcp_pose(q).translation + [0.0, 0.0, -0.05])[None])
+    state = _state(robot, q, rng.normal(size=7))
+    joint = Command(q=q + 0.1, qd=np.zeros(7))
+    task = Command(y=state.y, yd=np.zeros(6))
+    base = OperationalSpaceController(robot, OSCGains(reg=1e-3), collision)
+    metric = OperationalSpaceController(robot, OSCGains(reg=1e-3, metric="original"), collision)
+    h = np.sqrt(np.arange(7, 0, -1.0))  # diag(sqrt 7, ..., 1)
+    diff = metric.build_objective(state, task).A - base.build_objective(state, task).A
+    np.testing.assert_allclose(diff, np.diag(1e-3 * (h - 1.0)), atol=1e-15)
+    alone = OperationalSpaceController(robot, OSCGains(joint_only=True), collision)
+    objective = alone.build_objective(state, joint)  # the joint task alone: A = (reg + c) I
+    np.testing.assert_allclose(objective.A, (1e-6 + 1.0) * np.eye(7), atol=1e-15)
+    assert not np.allclose(alone.build_objective(state, task).A, np.eye(7))  # tasks unaffected
+    no_drift = OperationalSpaceController(robot, OSCGains(drift=False), collision)
+    shift = no_drift.build_objective(state, task).b - base.build_objective(state, task).b
+    assert np.abs(shift).max() > 1e-6  # the drift of a moving arm is not zero
 
 
 def test_a_nan_state_is_a_solver_error_carrying_the_system(robot):

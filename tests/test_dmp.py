@@ -94,7 +94,7 @@ def test_goal_change_moves_endpoint_to_new_goal(amplitude):
 
 
 def test_goal_mode_scales_the_shape_with_the_goal():
-    dmp = DMP(REFERENCE, T_REF, 0.01, amplitude="goal")
+    dmp = DMP(REFERENCE, T_REF, 0.01, amplitude="goal", min_amplitude=0.05)
     goal = Y0 + 2.0 * (G_REF - Y0)  # every moving dimension twice as far
     goal[4] = 0.3  # a dimension that did not move in training: not rescaled
     _, y = rollout(dmp, 0.01, T_REF, goal)

@@ -1,10 +1,14 @@
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from amex.config import RunConfig
+from amex.config import RunConfig, validate
+from amex.control.osc import OperationalSpaceController
+from amex.control.state import RobotState
 from amex.episode import run_episode
+from amex.errors import ConfigError
 from amex.interfaces import Command
 from amex.methods import Track, TrackConfig
 from amex.runner import prepare, run_one
@@ -85,3 +89,68 @@ def test_obstacle_contact_is_detected_and_avoided_with_the_collision_task(contex
         config.controller.col.weight = weight
     assert any(r.collided for r in blind)
     assert sum(r.collided for r in with_avoidance) < sum(r.collided for r in blind)
+
+
+class _Recorder:
+    def __init__(self):
+        self.steps = []
+
+    def record(self, step):
+        self.steps.append(step)
+
+    def finish(self, result):
+        self.result = result
+
+
+def test_kinematic_simulation_integrates_the_controller_accelerations_by_explicit_euler(context):
+    config, ctx = context
+    loop = dataclasses.replace(config.loop, kinematic=True, max_time=0.5)
+    scenario = make_scenario(config.scenario, 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    method = Track.from_plan(ctx.plan, config.method, 0.01)
+    recorder = _Recorder()
+    run_episode(ctx.robot, method, scenario, config.gains(), loop, recorder)
+    first, second = recorder.steps[0], recorder.steps[1]
+    # one outer step = 10 inner steps of q += dt v, v += dt qdd*, with qdd* the OSC's solution
+    osc = OperationalSpaceController(ctx.robot, config.gains())
+    q, v = first.state.q.copy(), first.state.v.copy()
+    data = ctx.robot.model.createData()
+    for _ in range(10):
+        qdd = osc.accelerations(RobotState(ctx.robot, data, q.copy(), v.copy()), first.command)
+        q, v = q + 1e-3 * v, v + 1e-3 * qdd
+    np.testing.assert_array_equal(second.state.q, q)
+    np.testing.assert_array_equal(second.state.v, v)
+    assert not np.any(first.tau)  # nothing is actuated
+
+
+def test_kinematic_and_dynamic_simulations_agree_on_a_free_motion(context):
+    config, ctx = context
+    config.sim = "kinematic"
+    try:
+        kinematic = run_one(config, ctx, 0)
+    finally:
+        config.sim = "dynamic"
+    dynamic = run_one(config, ctx, 0)
+    assert kinematic.success and dynamic.success
+    assert abs(kinematic.final_time - dynamic.final_time) <= 0.02
+    assert kinematic.sum_sq_acc == pytest.approx(dynamic.sum_sq_acc, rel=0.05)
+
+
+def test_kinematic_simulation_still_detects_obstacle_contact(context):
+    config, ctx = context
+    config.task, config.sim = 3, "kinematic"
+    weight = config.controller.col.weight
+    config.controller.col.weight = 0.0  # blind: tracking passes through the obstacle
+    try:
+        blind = [run_one(config, ctx, env) for env in range(3)]
+    finally:
+        config.task, config.sim = 0, "dynamic"
+        config.controller.col.weight = weight
+    assert any(r.collided for r in blind)
+
+
+def test_a_kinematic_simulation_refuses_a_model_mismatch():
+    config = RunConfig(sim="kinematic")
+    config.method = TrackConfig()
+    config.mismatch.mass_scale = 1.2
+    with pytest.raises(ConfigError, match="with sim=kinematic"):
+        validate(config)

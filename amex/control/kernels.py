@@ -16,12 +16,16 @@ index   meaning
 ======  =================================================================
 0-2     position task Kp, Kd, weight (Eq. 6, first row of Eq. 5)
 3-5     axis task Kp, Kd, weight (second row)
-6       diagonal of ``H`` plus the damping task's weight (its Jacobian is I)
+6       (unused: the diagonal is the ``hdiag`` argument)
 7       ``-weight * Kd`` of the damping task (times v)
 8       ``weight * Kp`` of the damping task (times q_rest - q)
 9-11    joint task Kp, Kd, weight (CR's joint targets)
 12-14   collision task Kp, Kd, weight (third row; target 0 penetration)
+15      1: subtract the drift ``J_dot v`` of the TCP tasks; 0: leave it out (the original)
 ======  =================================================================
+
+``hdiag`` (n,) is the diagonal of the regularizer ``H`` of Eq. 4 plus the damping task's weight
+(its Jacobian is I).
 """
 
 from __future__ import annotations
@@ -29,10 +33,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-N_PARAMS = 15
+N_PARAMS = 16
 
 
-def pack_gains(pos, dir_, joint, col, damping, reg: float) -> np.ndarray:
+def pack_gains(pos, dir_, joint, col, damping, reg: float, drift: bool = True) -> np.ndarray:
     """The ``prm`` vector of the module table from the controller's PD gains."""
     return np.array(
         [
@@ -51,6 +55,7 @@ def pack_gains(pos, dir_, joint, col, damping, reg: float) -> np.ndarray:
             col.kp,
             col.kd,
             col.weight,
+            1.0 if drift else 0.0,
         ],
         dtype=np.float64,
     )
@@ -75,6 +80,7 @@ def normal_equations(  # a flat signature keeps the compiled call cheap
     col_phi: float,
     Jc: np.ndarray,
     prm: np.ndarray,
+    hdiag: np.ndarray,
 ) -> None:
     """Fill ``A`` (n x n) and ``b`` (n,) with the normal equations of Eq. 4-6, in place.
 
@@ -96,13 +102,13 @@ def normal_equations(  # a flat signature keeps the compiled call cheap
         col_phi: collision penetration phi_col (the task is active when > 0).
         Jc: its Jacobian (1, n).
         prm: gains (module table).
+        hdiag: diagonal of H plus the damping weight (n,).
     """
     n = v.shape[0]
-    diag = prm[6]
     for i in range(n):
         for j in range(n):
             A[i, j] = 0.0
-        A[i, i] = diag
+        A[i, i] = hdiag[i]
         b[i] = prm[7] * v[i]
     if task_on:
         kp, kd, wp = prm[0], prm[1], prm[2]
@@ -122,10 +128,13 @@ def normal_equations(  # a flat signature keeps the compiled call cheap
         ex = by * zz - bz * zy + wy * dz - wz * dy
         ey = bz * zx - bx * zz + wz * dx - wx * dz
         ez = bx * zy - by * zx + wx * dy - wy * dx
+        d0, d1, d2 = drift[0], drift[1], drift[2]
+        if prm[15] == 0.0:  # the original: no drift term
+            ex = ey = ez = d0 = d1 = d2 = 0.0
         # Eq. 6 minus the drift: the task accelerations the joint accelerations must produce
-        rx = wp * (kp * (ty[0] - px) + kd * (tyd[0] - tw[0]) - drift[0])
-        ry = wp * (kp * (ty[1] - py) + kd * (tyd[1] - tw[1]) - drift[1])
-        rz = wp * (kp * (ty[2] - pz) + kd * (tyd[2] - tw[2]) - drift[2])
+        rx = wp * (kp * (ty[0] - px) + kd * (tyd[0] - tw[0]) - d0)
+        ry = wp * (kp * (ty[1] - py) + kd * (tyd[1] - tw[1]) - d1)
+        rz = wp * (kp * (ty[2] - pz) + kd * (tyd[2] - tw[2]) - d2)
         sx = kpa * (ty[3] - zx) + kda * (tyd[3] - dx) - ex
         sy = kpa * (ty[4] - zy) + kda * (tyd[4] - dy) - ey
         sz = kpa * (ty[5] - zz) + kda * (tyd[5] - dz) - ez
@@ -230,3 +239,11 @@ def clip_inplace(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
             x[i] = lo[i]
         elif x[i] > hi[i]:
             x[i] = hi[i]
+
+
+@numba.njit(cache=True)
+def euler_inplace(q: np.ndarray, v: np.ndarray, a: np.ndarray, dt: float) -> None:
+    """``q += dt v; v += dt a`` element-wise, in place (the kinematic simulation's step)."""
+    for i in range(q.shape[0]):
+        q[i] += dt * v[i]
+        v[i] += dt * a[i]

@@ -2,12 +2,15 @@
 
 Each active task map i contributes ``c_i || J_i q_ddot + J_dot_i v - y_ddot*_i ||^2`` with the PD
 target of Eq. 6, ``y_ddot* = Kp (y* - phi(q)) + Kd (y_dot* - phi_dot(q))``; the regularizer
-``||q_ddot||_H^2`` of Eq. 4 uses ``H = reg * I``. The minimizer solves the 7x7 normal equations
+``||q_ddot||_H^2`` of Eq. 4 uses ``H = reg * I`` (or ``reg * diag(metric)``, the authors' joint
+metric). The minimizer solves the n x n normal equations
 
     (H + sum_i c_i J_i^T J_i) q_ddot = sum_i c_i J_i^T (y_ddot*_i - J_dot_i v),
 
 and the torque is ``tau = M q_ddot + h`` (inverse dynamics with Pinocchio's model), clipped to the
-joint torque limits. Unlike the original code, the drift ``J_dot v`` is included.
+joint torque limits. Unlike the original code, the drift ``J_dot v`` is included (``drift=False``
+leaves it out, as the original). With ``joint_only`` a joint-target command (CR) is tracked by
+the joint task alone, without the damping and collision tasks, as the authors' CR controller.
 
 At 1 kHz the system is assembled and solved by one compiled call (:mod:`amex.control.kernels`,
 Numba): :meth:`OperationalSpaceController.build_objective` returns it (pure; no solve),
@@ -30,6 +33,7 @@ from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
 from amex.errors import SolverError
 from amex.interfaces import PD, Command
+from amex.plan.problem import joint_metric
 from amex.robot import RobotModel
 
 
@@ -46,6 +50,10 @@ class OSCGains:
             precision 0.1, no stiffness).
         margin: collision margin [m].
         reg: the regularizer ``H = reg * I`` of Eq. 4.
+        metric: the regularizer's joint metric, ``H = reg * diag(metric)``: ``identity`` or
+            ``original`` (:func:`~amex.plan.problem.joint_metric`).
+        drift: include the TCP tasks' drift ``J_dot v`` (the original did not).
+        joint_only: joint-target commands use the joint task alone (the original's CR).
     """
 
     pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
@@ -55,6 +63,9 @@ class OSCGains:
     damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
     margin: float = 0.02
     reg: float = 1e-6
+    metric: str = "identity"
+    drift: bool = True
+    joint_only: bool = False
 
 
 class Objective(NamedTuple):
@@ -110,9 +121,22 @@ class OperationalSpaceController:
         self._zeros6 = np.zeros(6)
         self._zero_row = np.zeros((1, n))
         self._A, self._b = np.empty((n, n)), np.empty(n)  # kernel work space
-        self._prm = kernels.pack_gains(
-            gains.pos, gains.dir, gains.joint, gains.col, gains.damping, gains.reg
+        g = gains
+        self._prm = kernels.pack_gains(g.pos, g.dir, g.joint, g.col, g.damping, g.reg, g.drift)
+        self._hdiag = self.regularizer() + g.damping.weight
+        no_damping = PD(0.0, 0.0, 0.0)
+        self._prm_joint = kernels.pack_gains(
+            g.pos, g.dir, g.joint, g.col, no_damping, g.reg, g.drift
         )
+        self._hdiag_joint = self.regularizer()
+
+    def regularizer(self) -> np.ndarray:
+        """The diagonal of H in Eq. 4, shape (n,)."""
+        g, n = self.gains, self.robot.nv
+        metric = joint_metric(g.metric, n)
+        if metric:
+            return g.reg * np.asarray(metric, dtype=float)
+        return np.full(n, g.reg)
 
     def _kernel_args(self, state: RobotState, command: Command) -> tuple:
         """The arguments of the compiled kernels after ``(A, b[, x])`` (module :mod:`.kernels`)."""
@@ -123,8 +147,9 @@ class OperationalSpaceController:
         tyd = command.yd if task_on and command.yd is not None else self._zeros6
         tq = q if joint_on else self._zeros
         tqd = command.qd if joint_on and command.qd is not None else self._zeros
+        alone = joint_on and self.gains.joint_only  # the joint task alone (module notes)
         col_phi, Jc = 0.0, self._zero_row
-        if self.col_map is not None:
+        if self.col_map is not None and not alone:
             terms = self.col_map.evaluate(state)
             col_phi, Jc = float(terms.phi[0]), terms.J
         return (
@@ -142,7 +167,8 @@ class OperationalSpaceController:
             self.q_rest,
             col_phi,
             Jc,
-            self._prm,
+            self._prm_joint if alone else self._prm,
+            self._hdiag_joint if alone else self._hdiag,
         )
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
@@ -164,21 +190,27 @@ class OperationalSpaceController:
     def build_objective_reference(self, state: RobotState, command: Command) -> Objective:
         """The same normal equations as :meth:`build_objective`, one task map at a time."""
         g = self.gains
-        n = self.robot.nv
-        A = g.reg * np.eye(n)
-        b = np.zeros(n)
+        A = np.diag(self.regularizer())
+        b = np.zeros(self.robot.nv)
+        alone = command.q is not None and g.joint_only
         if command.y is not None:
             yd = command.yd if command.yd is not None else np.zeros(6)
-            _accumulate(A, b, self.pos_map.evaluate(state), g.pos, command.y[:3], yd[:3])
-            _accumulate(A, b, self.dir_map.evaluate(state), g.dir, command.y[3:], yd[3:])
+            pos, axis = self.pos_map.evaluate(state), self.dir_map.evaluate(state)
+            if not g.drift:
+                pos = pos._replace(drift=np.zeros(3))
+                axis = axis._replace(drift=np.zeros(3))
+            _accumulate(A, b, pos, g.pos, command.y[:3], yd[:3])
+            _accumulate(A, b, axis, g.dir, command.y[3:], yd[3:])
         if command.q is not None:
             qd = command.qd if command.qd is not None else self._zeros
             _accumulate(A, b, self.joint_map.evaluate(state), g.joint, command.q, qd)
-        if self.col_map is not None:
+        if self.col_map is not None and not alone:
             terms = self.col_map.evaluate(state)
             if terms.phi[0] > 0.0:
                 _accumulate(A, b, terms, g.col, self._zero1, self._zero1)
-        _accumulate(A, b, self.joint_map.evaluate(state), g.damping, self.q_rest, self._zeros)
+        if not alone:
+            joint = self.joint_map.evaluate(state)
+            _accumulate(A, b, joint, g.damping, self.q_rest, self._zeros)
         return Objective(A, b)
 
     def accelerations(self, state: RobotState, command: Command) -> np.ndarray:

@@ -1,9 +1,13 @@
 """``amex-log``: look into episode logs (``info``, ``plot``, ``export``, ``recover``, ``layout``).
 
-Bad input (a missing, empty, non-MCAP or unrecoverably truncated file, a bad option) prints one
-line ``amex-log: error: ...`` on stderr and exits with code 2; ``AMEX_DEBUG=1`` shows tracebacks.
-A truncated file (a run killed by SIGKILL) is read up to its last complete chunk, and every
-command says so. matplotlib and pandas are imported only by the commands that need them.
+Bad input (a missing, empty, non-MCAP or unrecoverably truncated or corrupt file, a bad option or
+output name) prints one line ``amex-log: error: ...`` on stderr and exits with code 2;
+``AMEX_DEBUG=1`` shows tracebacks. A truncated file (a run killed by SIGKILL) is read up to its
+last complete chunk, a corrupt one (damaged bytes inside) without its damaged chunks, and every
+command says which. Outputs are checked before anything is read: ``plot`` writes an image format
+matplotlib knows (``-o out`` writes ``out.png`` and says so), ``recover`` a ``.mcap`` file,
+``layout`` a ``.json`` file; ``recover`` and ``layout`` never overwrite an existing file.
+matplotlib and pandas are imported only by the commands that need them.
 """
 
 from __future__ import annotations
@@ -18,9 +22,17 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from amex.argparsing import OneLineParser, fail
+from amex.durable import WriteError, create_new
 from amex.errors import AmexError
 from amex.log.plot3d import set_equal_axes_3d
-from amex.log.reader import LogData, LogError, read_log, recover, topics_with_numbers
+from amex.log.reader import (
+    LogData,
+    LogError,
+    LogExistsError,
+    read_log,
+    recover,
+    topics_with_numbers,
+)
 
 PROG = "amex-log"
 LAYOUT_FILE = Path(__file__).with_name("foxglove_layout.json")
@@ -55,6 +67,7 @@ def _parser() -> _Parser:
     p.add_argument("-o", "--output", type=Path, metavar="OUT", required=True)
     p = sub.add_parser("layout", help="write the Foxglove layout, with this machine's URDF path")
     p.add_argument("-o", "--output", type=Path, metavar="JSON", default=Path("amex_layout.json"))
+    p.add_argument("--robot", default="panda", help="a catalogue robot (default: panda)")
     return parser
 
 
@@ -70,6 +83,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     }
     try:
         commands[args.command](args)
+    except BrokenPipeError:  # the reader went away (| head): stop quietly, as cat does
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
     except (AmexError, OSError) as e:
         if os.environ.get("AMEX_DEBUG"):
             raise
@@ -80,9 +96,21 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _truncation_line(data: LogData) -> str:
     return (
-        f"recovered {data.message_count} messages from a truncated file ({data.note}); "
-        f"`{PROG} recover {data.path} -o OUT` writes them as a valid MCAP file"
+        f"recovered {data.message_count} messages from a {data.damage} file ({data.note}); "
+        f"`{PROG} recover {data.path} -o OUT.mcap` writes them as a valid MCAP file"
     )
+
+
+def _output(path: Path, suffixes: Sequence[str], what: str) -> Path:
+    """``path`` if its suffix is one of ``suffixes``; a bare name gets the first one."""
+    if not path.suffix:
+        return path.with_name(path.name + suffixes[0])
+    if path.suffix.lower() not in suffixes:
+        raise LogError(
+            f"invalid -o {str(path)!r}: {path.suffix!r} is not {what}; valid: a name ending in "
+            + ", ".join(suffixes)
+        )
+    return path
 
 
 def _fmt(value: Any) -> str:
@@ -96,7 +124,7 @@ def info(args: argparse.Namespace) -> None:
     data = read_log(args.file)
     out = sys.stdout
     out.write(f"file       {data.path} ({data.size / 1e3:.1f} kB)\n")
-    if data.truncated:
+    if data.damage:
         out.write(f"note       {_truncation_line(data)}\n")
     episode = data.metadata.get("episode", {})
     if episode:
@@ -116,7 +144,9 @@ def info(args: argparse.Namespace) -> None:
         text = " ".join(f"{k}={_short(v)}" for k, v in record.items())
         out.write(f"{name:<10} {text}\n")
     outcome = data.outcome
-    if outcome is None:
+    if outcome is None and not data.is_amex_log:
+        out.write("outcome    none: not an amex episode log (no episode metadata)\n")
+    elif outcome is None:
         out.write("outcome    none: the episode did not finish writing its log\n")
     else:
         keys = (
@@ -141,15 +171,22 @@ def _short(value: Any) -> str:
 
 def plot(args: argparse.Namespace) -> None:
     """Save a PNG: TCP/goal/reference paths, distance to goal, phase, joint accelerations."""
-    data = read_log(args.file)
-    output = args.output or args.file.with_suffix(".png")
-    if "/tcp" not in data.channels or not data.messages["/tcp"]:
-        raise LogError(f"{args.file} has no /tcp messages to plot (not an amex episode log?)")
     import matplotlib
     import numpy as np
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    output = args.output or args.file.with_suffix(".png")
+    if output.is_dir():
+        output = output / args.file.with_suffix(".png").name
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = [f".{ext}" for ext in FigureCanvasBase.get_supported_filetypes()]
+    output = _output(output, [".png", *sorted(set(formats) - {".png"})], "an image format")
+    data = read_log(args.file)
+    if "/tcp" not in data.channels or not data.messages["/tcp"]:
+        raise LogError(f"{args.file} has no /tcp messages to plot (not an amex episode log?)")
 
     fig = plt.figure(figsize=(12, 8.5), layout="constrained")
     ax3 = fig.add_subplot(2, 2, 1, projection="3d")
@@ -188,7 +225,7 @@ def plot(args: argparse.Namespace) -> None:
     output.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(output, dpi=110)
     plt.close(fig)
-    if data.truncated:
+    if data.damage:
         sys.stderr.write(f"{PROG}: note: {_truncation_line(data)}\n")
     sys.stdout.write(f"wrote {output}\n")
 
@@ -204,8 +241,8 @@ def _title(data: LogData) -> str:
             f"{outcome.get('final_distance', math.nan):.3f} m at "
             f"{outcome.get('final_time', math.nan):.2f} s"
         )
-    if data.truncated:
-        tail += " (recovered from a truncated file)"
+    if data.damage:
+        tail += f" (recovered from a {data.damage} file)"
     return (name or str(data.path.name)) + tail
 
 
@@ -287,11 +324,15 @@ def export(args: argparse.Namespace) -> None:
         written.append(path)
     meta = out_dir / "metadata.json"
     meta.write_text(
-        json.dumps({"truncated": data.truncated, "note": data.note, **data.metadata}, indent=2)
+        json.dumps(
+            {"truncated": data.truncated, "corrupt": data.corrupt, "note": data.note}
+            | data.metadata,
+            indent=2,
+        )
         + "\n"
     )
     written.append(meta)
-    if data.truncated:
+    if data.damage:
         sys.stderr.write(f"{PROG}: note: {_truncation_line(data)}\n")
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
@@ -340,26 +381,31 @@ def _is_matrix(value: Any) -> bool:
 
 def recover_cmd(args: argparse.Namespace) -> None:
     """Rewrite the readable part of a log as a valid indexed MCAP file."""
-    data = recover(args.file, args.output)
-    if data.truncated:
-        what = f"recovered {data.message_count} messages from a truncated file ({data.note})"
+    output = _output(args.output, [".mcap"], "an MCAP file")
+    data = recover(args.file, output)
+    if data.damage:
+        what = f"recovered {data.message_count} messages from a {data.damage} file ({data.note})"
     else:
         what = f"the file was intact; copied its {data.message_count} messages"
-    sys.stdout.write(f"{what}; wrote {args.output}\n")
+    sys.stdout.write(f"{what}; wrote {output}\n")
 
 
 def layout(args: argparse.Namespace) -> None:
-    """Write the shipped Foxglove layout with the absolute path of this machine's Panda URDF."""
-    from amex.robot import panda_urdf_path
+    """Write the shipped Foxglove layout with the absolute path of the robot's URDF."""
+    from amex.robot import RobotConfig, resolve
 
+    output = _output(args.output, [".json"], "a JSON file")
     text = LAYOUT_FILE.read_text()
-    urdf = os.path.realpath(panda_urdf_path())
+    urdf = os.path.realpath(resolve(RobotConfig(name=args.robot)).urdf_path)
     text = text.replace(URDF_PLACEHOLDER, json.dumps(urdf)[1:-1])
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(text)
-    sys.stdout.write(
-        f"wrote {args.output} (URDF: {urdf}); in Foxglove: Layouts > Import from file\n"
-    )
+    output.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        create_new(output, text.encode())
+    except FileExistsError:
+        raise LogExistsError(f"output file {output} already exists; not overwriting it") from None
+    except WriteError as e:
+        raise LogError(str(e)) from e
+    sys.stdout.write(f"wrote {output} (URDF: {urdf}); in Foxglove: Layouts > Import from file\n")
 
 
 if __name__ == "__main__":

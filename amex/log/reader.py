@@ -1,11 +1,17 @@
 """Reading episode logs back, tolerantly: intact files through the index, cut files chunk by chunk.
 
-:func:`read_log` first tries the ``mcap`` package's indexed (seeking) reader. If the summary
-section cannot be read, because the writer was killed (SIGKILL, power loss) and the file ends
-mid-chunk without footer, it streams the file record by record
-(:class:`mcap.stream_reader.StreamReader`, chunk CRCs checked) and keeps every record before the
-first incomplete or damaged one: all completed chunks, i.e. all but the last ~64 KiB. Short reads
-raise instead of being passed on, so a cut record is never returned as a shorter one.
+:func:`read_log` first tries the ``mcap`` package's indexed (seeking) reader. If that fails, it
+streams the file record by record (:class:`mcap.stream_reader.StreamReader`), checking every
+chunk's CRC on its own, and tells two cases apart:
+
+* **truncated**: the file does not end with the MCAP magic, because the writer was killed
+  (SIGKILL, power loss) mid-chunk: every record before the cut is kept, i.e. all but the last
+  ~64 KiB;
+* **corrupt**: the file is complete but damaged inside (flipped bytes): a damaged chunk is skipped
+  and reading goes on with the next one, so only that chunk's messages are lost; the summary's
+  message count, when readable, says how many.
+
+Short reads raise instead of being passed on, so a cut record is never returned as a shorter one.
 :func:`recover` writes what was read as a new, indexed MCAP file.
 
 JSON channels are decoded when read; protobuf channels (the Foxglove schemas) stay bytes until
@@ -22,18 +28,14 @@ import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
-from mcap.reader import SeekingReader
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 from amex.errors import AmexError
 from amex.log.protobuf import ProtobufSchema
-
-MCAP_MAGIC = b"\x89MCAP0\r\n"
+from amex.log.records import MCAP_MAGIC, RawLog, read_indexed, read_stream
 
 
 class LogError(AmexError):
@@ -54,6 +56,10 @@ class NotMcapError(LogError):
 
 class TruncatedLogError(LogError):
     """The file was cut before any message could be recovered."""
+
+
+class CorruptLogError(LogError):
+    """The file is complete but damaged so that no message can be read."""
 
 
 class LogExistsError(LogError):
@@ -87,7 +93,8 @@ class LogData:
         messages: per topic, the messages in log-time order.
         metadata: MCAP metadata records by name; values parsed from JSON where they are JSON.
         truncated: True if the file was cut (read by streaming; see :attr:`note`).
-        note: why the file counts as truncated, and where it was cut.
+        note: why the file counts as truncated or corrupt, and what was lost.
+        corrupt: True if damaged chunks inside a complete file were skipped (see :attr:`note`).
     """
 
     path: Path
@@ -97,13 +104,25 @@ class LogData:
     metadata: dict[str, dict[str, Any]]
     truncated: bool = False
     note: str = ""
-    _raw: _RawLog | None = field(default=None, repr=False, compare=False)
+    corrupt: bool = False
+    _raw: RawLog | None = field(default=None, repr=False, compare=False)
     _decoded: dict[str, list[LogMessage]] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def message_count(self) -> int:
         """Number of messages read (recovered, for a truncated file)."""
         return sum(c.message_count for c in self.channels.values())
+
+    @property
+    def damage(self) -> str:
+        """``""`` for an intact file, else ``"truncated"``, ``"corrupt"`` or both."""
+        flags = (("truncated", self.truncated), ("corrupt", self.corrupt))
+        return " and ".join(word for word, flag in flags if flag)
+
+    @property
+    def is_amex_log(self) -> bool:
+        """Whether amex wrote it (it has the ``episode`` metadata record or an amex channel)."""
+        return "episode" in self.metadata or "/tcp" in self.channels
 
     @property
     def start_time(self) -> float:
@@ -219,29 +238,6 @@ class LogData:
         return out
 
 
-@dataclass
-class _RawLog:
-    """Records as read, for :func:`recover`."""
-
-    schemas: dict[int, Schema] = field(default_factory=dict)
-    channels: dict[int, Channel] = field(default_factory=dict)
-    messages: list[Message] = field(default_factory=list)
-    metadata: list[Metadata] = field(default_factory=list)
-
-
-class _ExactReader:
-    """A file wrapper whose short reads raise: the mcap stream reader would accept them."""
-
-    def __init__(self, f: IO[bytes]) -> None:
-        self._f = f
-
-    def read(self, n: int = -1) -> bytes:
-        data = self._f.read(n)
-        if n > 0 and len(data) != n:
-            raise EOFError(f"file ends {n - len(data)} bytes into a record")
-        return data
-
-
 def _check_file(path: Path) -> int:
     """Size of ``path``, or the error that says why it is no log."""
     if not path.exists():
@@ -260,63 +256,9 @@ def _check_file(path: Path) -> int:
     return size
 
 
-def _read_indexed(f: IO[bytes]) -> _RawLog | None:
-    """All records through the summary index; None if the file has no readable summary."""
-    try:
-        reader = SeekingReader(f)
-        if reader.get_summary() is None:
-            return None
-        raw = _RawLog()
-        for schema, channel, message in reader.iter_messages(log_time_order=True):
-            if schema is not None:
-                raw.schemas.setdefault(schema.id, schema)
-            raw.channels.setdefault(channel.id, channel)
-            raw.messages.append(message)
-        raw.metadata = list(reader.iter_metadata())
-        summary = reader.get_summary()
-        if summary is not None:  # channels without messages still count as channels
-            for sid, schema in summary.schemas.items():
-                raw.schemas.setdefault(sid, schema)
-            for cid, channel in summary.channels.items():
-                raw.channels.setdefault(cid, channel)
-        return raw
-    except Exception:  # any failure: fall back to the tolerant stream
-        return None
-
-
-def _read_stream(f: IO[bytes]) -> tuple[_RawLog, str]:
-    """Every record up to the first incomplete or damaged one, and why reading stopped there."""
-    raw = _RawLog()
-    reader = StreamReader(_ExactReader(f), validate_crcs=True)  # type: ignore[arg-type]
-    try:
-        for record in reader.records:
-            if isinstance(record, Schema):
-                raw.schemas[record.id] = record
-            elif isinstance(record, Channel):
-                raw.channels[record.id] = record
-            elif isinstance(record, Message):
-                if record.channel_id in raw.channels:
-                    raw.messages.append(record)
-            elif isinstance(record, Metadata):
-                raw.metadata.append(record)
-    except Exception as e:  # a cut or corrupt record ends the readable part
-        return raw, _reason(e)
-    return raw, ""
-
-
-def _reason(error: Exception) -> str:
-    """Why streaming stopped, in words."""
-    text = str(error)
-    if "18446744073709551615" in text:  # the writer's placeholder length of an open chunk
-        return "an unfinished chunk"
-    if isinstance(error, EOFError) or type(error).__name__ == "EndOfFile":
-        return "a record cut short"
-    if "CRC" in type(error).__name__ or "crc" in text.lower():
-        return "a damaged chunk (CRC mismatch)"
-    return f"{type(error).__name__}: {text}"[:200]
-
-
-def _decode(raw: _RawLog, path: Path, size: int, truncated: bool, note: str) -> LogData:
+def _decode(
+    raw: RawLog, path: Path, size: int, truncated: bool, note: str, corrupt: bool = False
+) -> LogData:
     raw.messages.sort(key=lambda m: (m.log_time, m.channel_id, m.sequence))
     by_topic: dict[str, list[LogMessage]] = {c.topic: [] for c in raw.channels.values()}
     for message in raw.messages:
@@ -340,7 +282,7 @@ def _decode(raw: _RawLog, path: Path, size: int, truncated: bool, note: str) -> 
         metadata.setdefault(record.name, {}).update(
             {k: _parse(v) for k, v in record.metadata.items()}
         )
-    return LogData(path, size, channels, by_topic, metadata, truncated, note, raw)
+    return LogData(path, size, channels, by_topic, metadata, truncated, note, corrupt, raw)
 
 
 def _parse(text: str) -> Any:
@@ -361,20 +303,34 @@ def read_log(path: Path | str) -> LogData:
     size = _check_file(path)
     try:
         with open(path, "rb") as f:
-            raw = _read_indexed(f)
+            raw = read_indexed(f)
             if raw is not None:
                 return _decode(raw, path, size, False, "")
-            f.seek(0)
-            raw, reason = _read_stream(f)
+            f.seek(max(size - len(MCAP_MAGIC), 0))
+            complete = f.read(len(MCAP_MAGIC)) == MCAP_MAGIC and size > 2 * len(MCAP_MAGIC)
+            raw, stream = read_stream(f)
     except OSError as e:
         raise LogError(f"cannot read {path}: {e.strerror or e}") from e
-    note = f"cut at {size} bytes, in {reason}" if reason else "no summary section"
+    truncated = bool(stream.stopped) and not complete
+    notes = []
+    if truncated:
+        notes.append(f"cut at {size} bytes, in {stream.stopped}")
+    if stream.damaged:
+        notes.append(f"{stream.damaged} damaged chunk{'s' * (stream.damaged > 1)} skipped")
+    if stream.stopped and complete:
+        notes.append(f"unreadable from {stream.stopped} on")
+    if stream.expected is not None and (stream.damaged or stream.stopped):
+        notes.append(f"{len(raw.messages)} of {stream.expected} messages read")
+    corrupt = bool(stream.damaged) or (bool(stream.stopped) and complete)
+    note = "; ".join(notes) or "no summary section"
     if not raw.messages:
+        if corrupt and not truncated:
+            raise CorruptLogError(f"log file is corrupt ({note}), nothing to recover: {path}")
         raise TruncatedLogError(
             f"log file is truncated before its first complete chunk ({size} bytes), "
             f"nothing to recover: {path}"
         )
-    return _decode(raw, path, size, bool(reason), note)
+    return _decode(raw, path, size, truncated, note, corrupt)
 
 
 def recover(src: Path | str, dst: Path | str) -> LogData:
@@ -417,6 +373,7 @@ def recover(src: Path | str, dst: Path | str) -> LogData:
                     "source": json.dumps(str(src)),
                     "source_bytes": json.dumps(data.size),
                     "truncated": json.dumps(data.truncated),
+                    "corrupt": json.dumps(data.corrupt),
                     "messages": json.dumps(len(raw.messages)),
                     "note": json.dumps(data.note),
                 },

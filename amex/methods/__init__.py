@@ -18,14 +18,22 @@ from importlib.metadata import entry_points
 
 from amex.errors import ConfigError
 from amex.methods.amex import AMEX, AMEXConfig
+from amex.methods.amex_original import AMEXOriginal
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.cr import CR, CRConfig
+from amex.methods.cr_original import CROriginal
 from amex.methods.dmp import DMP, DMPConfig
+from amex.methods.dmp_original import DMPOriginal
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.track import Track, TrackConfig
 
 METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}
 BUILTIN_METHODS = frozenset(METHODS)
+IMPLEMENTATIONS = ("ours", "original")
+#: The authors' implementations of the paper's methods (``implementation=original``), by name.
+ORIGINAL_METHODS: dict[str, type[Method]] = {
+    cls.name: cls for cls in (AMEXOriginal, CROriginal, DMPOriginal)
+}
 ENTRY_POINT_GROUP = "amex.methods"
 
 
@@ -73,8 +81,16 @@ def load_plugins() -> list[str]:
 load_plugins()
 
 
-def get_method(name: str) -> type[Method]:
-    """The method class registered as ``name``; :class:`ConfigError` listing the valid names."""
+def get_method(name: str, implementation: str = "ours") -> type[Method]:
+    """The method class registered as ``name``; :class:`ConfigError` listing the valid names.
+
+    With ``implementation="original"``, the authors' implementation of amex, dmp or cr
+    (:data:`ORIGINAL_METHODS`); other methods have only theirs.
+    """
+    if implementation not in IMPLEMENTATIONS:
+        raise ConfigError.invalid("implementation", implementation, IMPLEMENTATIONS)
+    if implementation == "original" and name in ORIGINAL_METHODS:
+        return ORIGINAL_METHODS[name]
     try:
         return METHODS[name]
     except KeyError:
@@ -83,6 +99,11 @@ def get_method(name: str) -> type[Method]:
 
 __all__ = [
     "AMEX",
+    "AMEXOriginal",
+    "CROriginal",
+    "DMPOriginal",
+    "IMPLEMENTATIONS",
+    "ORIGINAL_METHODS",
     "BUILTIN_METHODS",
     "ENTRY_POINT_GROUP",
     "AMEXConfig",

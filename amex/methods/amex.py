@@ -84,7 +84,7 @@ import numpy as np
 
 from amex.errors import ConfigError
 from amex.interfaces import PD, Command
-from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.base import Method, MethodConfig, Observation, require_finite
 from amex.plan.spline import QuadraticBSpline, WarpedSpline, max_sample_error
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
@@ -184,7 +184,12 @@ class AMEX(Method):
             raise ConfigError(
                 f"AMEX reference must be finite, shape (N + 1 >= 3, m); got {Y.shape}"
             )
-        if not float(duration) > 0.0:
+        if not np.linalg.norm(Y[-1] - Y[0]) > 0.0:
+            raise ConfigError(
+                "AMEX reference must move: its first and last samples are equal, so Eq. 8's "
+                "delta_g would be 0 and the phase would never advance"
+            )
+        if not (math.isfinite(duration) and duration > 0.0):
             raise ConfigError.invalid("duration", duration, "> 0 [s]")
         if not 0.0 < float(dt) <= float(duration):
             raise ConfigError.invalid("dt", dt, f"in (0, duration = {duration}] [s]")
@@ -261,7 +266,12 @@ class AMEX(Method):
         return self._final
 
     def update(self, y: np.ndarray, g: np.ndarray) -> AMEXTarget:
-        """One outer step of Algorithm 1 (steps 2-4) for task state y and goal g, shapes (m,)."""
+        """One outer step of Algorithm 1 (steps 2-4) for task state y and goal g, shapes (m,).
+
+        Raises:
+            InputError: y or g holds a NaN or an infinity; AMEX is left as it was.
+        """
+        require_finite(y=y, g=g)
         # Eq. 8 factors, guarded; computed every step for the log, used after the warm-up.
         gy = g - y
         dist_goal = math.sqrt(np.dot(gy, gy))

@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -69,6 +69,7 @@ import numpy as np
 from amex.errors import ConfigError
 from amex.interfaces import Command
 from amex.methods.base import Method, MethodConfig, Observation
+from amex.scaling import scaled
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
     from amex.plan.reference import ReferencePlan
@@ -86,11 +87,12 @@ class CRConfig(MethodConfig):
         acceleration: weight of the squared joint accelerations (as the reference plan).
         final_position: weight of the final TCP position error [1/m^2] (original 1e4).
         final_velocity: weight of the final joint velocity [s^2/rad^2] (original 1e3).
-        final_axis: weight of the final TCP z-axis error (original 1e4; here x scale^2).
+        final_axis: weight of the final TCP z-axis error (original 1e4; carries scale^2, see the
+            module notes).
         final_axis_velocity: weight of the final TCP z-axis rate [s^2] (original 1e3).
         collision: weight of the collision proxy term (original 1; here 10).
-        collision_margin: distance at which the collision term starts [m] (original 0.1 m,
-            x scale 0.2).
+        collision_margin: distance at which the collision term starts [m] (original 0.1 m; a
+            length in original units, :mod:`amex.scaling`).
         knot_dt: knot spacing of the replanning horizon [s] (the reference's 0.01 s).
         max_iterations: Gauss-Newton iterations per step, "until converged, capped" (original
             20).
@@ -107,10 +109,10 @@ class CRConfig(MethodConfig):
     acceleration: float = 1.0  # [s^3/rad^2 per unit cost]
     final_position: float = 1e4  # [1/m^2] original
     final_velocity: float = 1e3  # [s^2/rad^2] original
-    final_axis: float = 400.0  # [-] original 1e4 x scale^2 (0.2), see the module notes
+    final_axis: float = field(default=1e4, metadata=scaled(2))  # [-] original; module notes
     final_axis_velocity: float = 1e3  # [s^2] original
     collision: float = 10.0  # [-] original 1, see the module notes
-    collision_margin: float = 0.02  # [m] original 0.1 m x scale 0.2
+    collision_margin: float = field(default=0.1, metadata=scaled(1))  # [m] original
     knot_dt: float = 0.01  # [s] the reference's (original)
     max_iterations: int = 20  # [-] original
     tolerance: float = 1e-3  # [-, rad]
@@ -152,6 +154,8 @@ class CR(Method):
         reference_dt: its sample period [s]; T_ref = N reference_dt.
         dt: outer (control) period [s]: the command is the plan at t + dt / 2 (module notes).
         config: CR settings (default :class:`CRConfig`).
+        metric: joint metric diag(H) of the acceleration cost, the reference plan's (empty:
+            identity).
 
     Raises:
         ConfigError: for invalid settings or a reference of the wrong shape.
@@ -167,6 +171,7 @@ class CR(Method):
         reference_dt: float,
         dt: float,
         config: CRConfig | None = None,
+        metric: tuple[float, ...] = (),
     ) -> None:
         from amex.plan.optimizer import TrajectoryCosts, batch_kinematics
 
@@ -197,6 +202,7 @@ class CR(Method):
             final_axis_velocity=c.final_axis_velocity,
             collision=c.collision,
             collision_margin=c.collision_margin,
+            metric=metric,
         )
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
@@ -221,7 +227,7 @@ class CR(Method):
         if not isinstance(config, CRConfig):  # any object with CRConfig's fields
             names = {f.name for f in fields(CRConfig)}
             config = CRConfig(**{k: getattr(config, k) for k in names if hasattr(config, k)})
-        return cls(robot, plan.q, plan.dt, dt, config)
+        return cls(robot, plan.q, plan.dt, dt, config, plan.metric)
 
     # ----------------------------------------------------------------------------- state
     def restart(self) -> None:

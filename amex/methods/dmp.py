@@ -46,7 +46,8 @@ from scipy.linalg import expm
 
 from amex.errors import ConfigError
 from amex.interfaces import PD, Command
-from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.base import Method, MethodConfig, Observation, require_finite
+from amex.scaling import scaled
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
     from amex.plan.reference import ReferencePlan
@@ -77,8 +78,9 @@ class DMPConfig(MethodConfig):
         amplitude: ``"trained"`` (A = g_ref - y0 fixed, as the original) or ``"goal"``
             (A = g - y0 of the current goal).
         min_amplitude: floor of |A| [m] (axis components: [-]); smaller trained amplitudes are
-            floored and, in goal mode, not rescaled. 5 cm bounds the goal-mode shape scaling to
-            20 per metre of goal offset.
+            floored and, in goal mode, not rescaled. A length in original units
+            (:mod:`amex.scaling`): 0.25 m is 5 cm on the Panda's scene (scale 0.2), which bounds
+            the goal-mode shape scaling to 20 per metre of goal offset.
         basis_overlap: activation of a basis at the next centre [-].
         quad_step: longest quadrature sub-interval of an integration step [s].
     """
@@ -92,7 +94,7 @@ class DMPConfig(MethodConfig):
     beta_y: float = 25.0 / 4.0  # [-]
     ridge: float = 1e-7  # [-]
     amplitude: str = "trained"
-    min_amplitude: float = 0.05  # [m]
+    min_amplitude: float = field(default=0.25, metadata=scaled(1))  # [m] original units
     basis_overlap: float = 0.5  # [-]
     quad_step: float = 0.01  # [s]
 
@@ -169,7 +171,7 @@ class DMP(Method):
         Y = np.array(reference, dtype=float)
         if Y.ndim != 2 or len(Y) < 3 or not np.all(np.isfinite(Y)):
             raise ConfigError(f"DMP reference must be finite, shape (N + 1 >= 3, m); got {Y.shape}")
-        if not duration > 0.0:
+        if not (math.isfinite(duration) and duration > 0.0):
             raise ConfigError.invalid("duration", duration, "> 0 [s]")
         self.reference = Y
         self.tau = float(duration)
@@ -205,7 +207,7 @@ class DMP(Method):
         self._amp_offset = np.empty(self.n_dims)
         self._powers = np.ones(3)  # [1, x0, x0^2]
         self._rate_arr = np.array(1.0)
-        if not dt > 0.0:
+        if not (math.isfinite(dt) and dt > 0.0):
             raise ConfigError.invalid("dt", dt, "> 0 [s]")
         self.dt = float(dt)
         self._s = _Steps(self, self.dt)
@@ -262,7 +264,11 @@ class DMP(Method):
         """Restart at phase 1 from ``y0`` (default tau_ref(0)) with velocity ``yd0`` [1/s].
 
         ``yd0`` defaults to tau_ref's start velocity; ``y0`` is also the goal-mode amplitude's y0.
+
+        Raises:
+            InputError: y0 or yd0 holds a NaN or an infinity (nothing is changed).
         """
+        require_finite(y0=0.0 if y0 is None else y0, yd0=0.0 if yd0 is None else yd0)
         head = self._s.head[self._flip]
         head[0] = self.reference[0] if y0 is None else y0
         head[1] = self._yd0 if yd0 is None else yd0
@@ -289,7 +295,7 @@ class DMP(Method):
 
     def _use_dt(self, dt: float) -> _Steps:
         """Switch to steps of ``dt`` [s], carrying the state over."""
-        if not dt > 0.0:
+        if not (math.isfinite(dt) and dt > 0.0):
             raise ConfigError.invalid("dt", dt, "> 0 [s]")
         new = self._steps.get(dt)
         if new is None:
@@ -301,11 +307,17 @@ class DMP(Method):
         return new
 
     def update(self, goal: np.ndarray, dt: float) -> DMPTarget:
-        """Advance by ``dt`` [s] towards ``goal``, shape (m,), held over the step (Eq. 1)."""
+        """Advance by ``dt`` [s] towards ``goal``, shape (m,), held over the step (Eq. 1).
+
+        Raises:
+            InputError: ``goal`` holds a NaN or an infinity; the DMP is left as it was.
+            ConfigError: ``dt`` is not a finite duration > 0.
+        """
         return self._advance(goal, dt, 1.0)
 
     def _advance(self, goal: np.ndarray, dt: float, rate: float) -> DMPTarget:
         """One step of ``dt`` with the phase slowed to ``rate`` (1: Eq. 1; module notes)."""
+        require_finite(goal=goal)
         s = self._s if dt == self._s_dt else self._use_dt(dt)
         i = self._flip
         x0 = self._x

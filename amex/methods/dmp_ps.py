@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from amex.errors import ConfigError
 from amex.interfaces import Command
-from amex.methods.base import Observation
+from amex.methods.base import Observation, require_finite
 from amex.methods.dmp import DMP, DMPConfig, DMPTarget
+from amex.scaling import scaled
 
 
 @dataclass
@@ -18,14 +20,16 @@ class DMPPSConfig(DMPConfig):
     """DMP with phase stopping (the paper's Eq. 2).
 
     Attributes:
-        beta_ps: phase-stopping gain [1/m^2]. The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)``
-            of its speed: with 1e3 a 1 cm tracking error slows it by 9 %, 3 cm halves it, 10 cm
-            divides it by 11, while the sub-millimetre lag of free tracking costs < 0.1 %. Axis
-            components enter unscaled (an axis error of 0.01 counts like 1 cm).
+        beta_ps: phase-stopping gain [1/m^2], in original units (:mod:`amex.scaling`: it carries
+            scale^-2). The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)`` of its speed: 40 on the
+            original scene is 1e3 on the Panda's (scale 0.2), where a 1 cm tracking error slows it
+            by 9 %, 3 cm halves it, 10 cm divides it by 11, while the sub-millimetre lag of free
+            tracking costs < 0.1 %. Axis components enter unscaled (on the Panda's scene an axis
+            error of 0.01 counts like 1 cm).
     """
 
     name: str = "dmp_ps"
-    beta_ps: float = 1e3  # [1/m^2]
+    beta_ps: float = field(default=40.0, metadata=scaled(-2))  # [1/m^2] original units
 
 
 class DMPPhaseStop(DMP):
@@ -50,14 +54,19 @@ class DMPPhaseStop(DMP):
     def __init__(
         self, reference: np.ndarray, duration: float, dt: float, beta_ps: float = 1e3, **params: Any
     ) -> None:
-        if not beta_ps >= 0.0:
+        if not (math.isfinite(beta_ps) and beta_ps >= 0.0):
             raise ConfigError.invalid("beta_ps", beta_ps, ">= 0 [1/m^2]")
         super().__init__(reference, duration, dt, **params)
         self.beta_ps = float(beta_ps)
         self._err = np.empty(self.n_dims)
 
     def phase_rate(self, y: np.ndarray) -> float:
-        """Eq. 2's factor ``1 / (1 + beta_ps ||y* - y||^2)`` for the measured y, shape (m,)."""
+        """Eq. 2's factor ``1 / (1 + beta_ps ||y* - y||^2)`` for the measured y, shape (m,).
+
+        Raises:
+            InputError: y holds a NaN or an infinity.
+        """
+        require_finite(y=y)
         e = np.subtract(self._s.head[self._flip][0], y, out=self._err)
         return 1.0 / (1.0 + self.beta_ps * float(e @ e))
 

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from amex.interfaces import PD, Command
-from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.base import Method, MethodConfig, Observation, require_finite
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
     from amex.plan.reference import ReferencePlan
@@ -55,6 +55,7 @@ class Track(Method):
 
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`; linear interpolation between reference samples."""
+        require_finite(t=obs.t)
         u = obs.t / self.dt_ref
         last = len(self.reference) - 1
         k = min(int(u), last - 1)

@@ -1,42 +1,49 @@
 """Compute the reference plan once per configuration and keep it on disk.
 
-The cache key is a SHA-256 of everything the plan depends on: the URDF's bytes, the start
+The cache key is a SHA-256 of everything the plan depends on: the robot (its cleaned
+description, :attr:`~amex.robot.RobotModel.fingerprint`), the start
 configuration, the goal, the plan settings and :data:`PLAN_FORMAT` (bumped when the optimizer's
-mathematics change). Files are written atomically, so parallel workers can share the cache.
+mathematics change). Files are written atomically (:func:`amex.durable.replace_durably`), so
+parallel workers can share the cache. A cached file is used only if it holds a finite plan of the
+configured shape, sample period and start; a truncated, garbled or mismatched file is solved
+again and replaced. A cache that cannot be written (read-only, or its path is a file) costs one
+warning and a solve per run, never the run.
 """
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
-import os
-import tempfile
+import logging
+import math
 from pathlib import Path
 
 import numpy as np
 
-from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem, solve_trajectory
+from amex.durable import WriteError, replace_durably
+from amex.paths import cache_dir
+from amex.plan.optimizer import (
+    TrajectoryCosts,
+    TrajectoryProblem,
+    solve_trajectory,
+    solve_trajectory_newton,
+)
+from amex.plan.problem import joint_metric
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
 
 PLAN_FORMAT = 1
 
-
-def cache_dir() -> Path:
-    """``$AMEX_CACHE_DIR``, else ``$XDG_CACHE_HOME/amex``, else ``~/.cache/amex``."""
-    if "AMEX_CACHE_DIR" in os.environ:
-        return Path(os.environ["AMEX_CACHE_DIR"])
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    return Path(base) / "amex"
+log = logging.getLogger(__name__)
 
 
 def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
     """Hex digest identifying the plan for this robot, start, goal and settings."""
     h = hashlib.sha256()
-    h.update(Path(robot.urdf_path).read_bytes())
     spec = {
         "format": PLAN_FORMAT,
-        "robot": robot.name,
+        "robot": robot.fingerprint,
         "q0": [float(x) for x in robot.q0],
         "goal_pos": [float(x) for x in goal_pos],
         "goal_axis": [float(x) for x in goal_axis],
@@ -46,11 +53,22 @@ def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
     return h.hexdigest()[:20]
 
 
+def reference_costs(robot: RobotModel, config: PlanConfig) -> TrajectoryCosts:
+    """The reference problem's cost terms (ConfigError for a setting they cannot take)."""
+    return TrajectoryCosts(
+        **config.cost_weights(),
+        collision=0.0,
+        metric=joint_metric(config.metric, robot.nv),
+        final_velocity_space=config.final_velocity_space,
+    )
+
+
 def solve_reference(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> ReferencePlan:
     """Solve the reference problem (no obstacles, start at rest in ``robot.q0``) from scratch."""
-    costs = TrajectoryCosts(**config.cost_weights(), collision=0.0)
+    costs = reference_costs(robot, config)
+    metric = costs.metric
     problem = TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),
@@ -62,9 +80,57 @@ def solve_reference(
         obstacle_radii=np.zeros(0),
         costs=costs,
     )
-    solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
+    if config.solver == "newton":
+        solution = solve_trajectory_newton(robot, problem, max_iterations=config.max_iterations)
+    else:
+        solution = solve_trajectory(robot, problem, max_iterations=config.max_iterations)
     y = np.array([robot.task_position(q) for q in solution.q])
-    return ReferencePlan(q=solution.q, y=y, dt=config.dt)
+    return ReferencePlan(q=solution.q, y=y, dt=config.dt, metric=metric)
+
+
+def load_cached(path: Path, robot: RobotModel, config: PlanConfig) -> ReferencePlan | None:
+    """The plan stored at ``path`` if it is readable and fits ``config`` and ``robot``, else None.
+
+    Fits: ``q`` of shape (steps + 1, nv) starting at ``robot.q0``, ``y`` of shape (steps + 1, 6),
+    the configured ``dt`` (so also the duration), every value finite.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            q = np.array(f["q"], dtype=float)
+            y = np.array(f["y"], dtype=float)
+            dt = float(f["dt"])
+    except Exception:  # missing, truncated, garbled, not an npz: numpy raises many types
+        return None
+    n = config.steps + 1
+    fits = (
+        q.shape == (n, robot.nv)
+        and y.shape == (n, 6)
+        and math.isclose(dt, config.dt, rel_tol=1e-12)
+        and bool(np.isfinite(q).all() and np.isfinite(y).all())
+        and np.allclose(q[0], robot.q0, rtol=0.0, atol=1e-9)
+    )
+    if not fits:
+        return None
+    return ReferencePlan(q=q, y=y, dt=config.dt, metric=joint_metric(config.metric, robot.nv))
+
+
+def store(path: Path, plan: ReferencePlan) -> bool:
+    """Write ``plan`` to ``path`` atomically; False (and one warning) if the cache is unwritable."""
+    buffer = io.BytesIO()
+    np.savez(buffer, q=plan.q, y=plan.y, dt=plan.dt)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        replace_durably(path, buffer.getvalue())
+    except (OSError, WriteError) as e:
+        reason = e.reason if isinstance(e, WriteError) else (e.strerror or str(e))
+        log.warning(
+            "plan cache %s not written (%s): the plan is solved again by every run; "
+            "set AMEX_CACHE_DIR to a writable directory",
+            path.parent,
+            reason,
+        )
+        return False
+    return True
 
 
 def reference_plan(
@@ -74,19 +140,11 @@ def reference_plan(
     goal_axis: np.ndarray,
     directory: Path | None = None,
 ) -> ReferencePlan:
-    """The reference plan, from the disk cache when present, else solved and stored."""
+    """The reference plan: from the disk cache when a fitting one is there, else solved, stored."""
     directory = cache_dir() / "plans" if directory is None else directory
     path = directory / f"plan_{plan_key(robot, config, goal_pos, goal_axis)}.npz"
-    if path.exists():
-        try:
-            with np.load(path) as f:
-                return ReferencePlan(q=f["q"], y=f["y"], dt=float(f["dt"]))
-        except (OSError, ValueError, KeyError):
-            pass  # unreadable (e.g. truncated by a crash): recompute and overwrite
-    plan = solve_reference(robot, config, goal_pos, goal_axis)
-    directory.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=directory, suffix=".npz")
-    with os.fdopen(fd, "wb") as f:
-        np.savez(f, q=plan.q, y=plan.y, dt=plan.dt)
-    os.replace(tmp, path)
+    plan = load_cached(path, robot, config)
+    if plan is None:
+        plan = solve_reference(robot, config, goal_pos, goal_axis)
+        store(path, plan)
     return plan

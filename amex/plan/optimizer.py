@@ -60,6 +60,7 @@ __all__ = [
     "build_normal_equations",
     "shift_warm_start",
     "solve_trajectory",
+    "solve_trajectory_newton",
     "trajectory_residuals",
 ]
 
@@ -104,12 +105,15 @@ def _retain_freed_memory() -> bool:
 
 
 @lru_cache(maxsize=8)
-def _acceleration_band(n: int, T: int, dt: float, weight: float) -> np.ndarray:
+def _acceleration_band(
+    n: int, T: int, dt: float, weight: float, metric: tuple[float, ...] = ()
+) -> np.ndarray:
     """``2 J_acc^T J_acc`` in lower band storage (2n subdiagonals), shape (2n + 1, nT); read-only.
 
     J_acc is ``sqrt(weight dt) / dt^2`` times the second-difference operator D on the free knots,
-    so the matrix is ``kron(D^T D, I_n)`` scaled; D^T D is pentadiagonal: diagonal 6 (5 and 1 at
-    the last two knots), first off-diagonal -4 (-2 at the last), second off-diagonal 1.
+    so the matrix is ``kron(D^T D, I_n)`` scaled (``kron(D^T D, H)`` with a joint ``metric``
+    diag(H)); D^T D is pentadiagonal: diagonal 6 (5 and 1 at the last two knots), first
+    off-diagonal -4 (-2 at the last), second off-diagonal 1.
     """
     scale = 2.0 * weight / dt**3
     band = np.zeros((2 * n + 1, n * T))
@@ -119,6 +123,8 @@ def _acceleration_band(n: int, T: int, dt: float, weight: float) -> np.ndarray:
     band[n, : n * max(T - 1, 0)] = -4.0 * scale
     band[n, n * max(T - 2, 0) : n * max(T - 1, 0)] = -2.0 * scale
     band[2 * n, : n * max(T - 2, 0)] = scale
+    if metric:  # every band entry couples a joint with itself: scale its column by H_jj
+        band *= np.tile(np.asarray(metric, dtype=float), T)
     band.flags.writeable = False
     return band
 
@@ -134,6 +140,17 @@ def _add_block(band: np.ndarray, block: np.ndarray, first: int) -> None:
     """Add a symmetric ``block`` starting at row/column ``first`` to a lower band matrix."""
     i, j = _lower_triangle(block.shape[0])
     band.ravel()[(i - j) * band.shape[1] + first + j] += block[i, j]
+
+
+def _acceleration_scale(costs: TrajectoryCosts, dt: float) -> float | np.ndarray:
+    """Factor of the second differences in the acceleration residuals.
+
+    ``sqrt(w dt) / dt^2``, times ``sqrt(H_jj)`` per joint with a joint metric (then shape (n,)).
+    """
+    s_acc = math.sqrt(costs.acceleration * dt) / dt**2
+    if costs.metric:
+        return s_acc * np.sqrt(np.asarray(costs.metric, dtype=float))
+    return s_acc
 
 
 def _final_terms(
@@ -167,20 +184,31 @@ def _final_terms(
     )
     dzdot = -skew(z) @ domega + skew(Jw @ v) @ Jz
     w = np.sqrt([c.final_position, c.final_velocity, c.final_axis, c.final_axis_velocity])
+    eye = np.eye(n) / dt
+    p_last = oMf.translation
+    if c.final_velocity_space == "tcp":  # (p(q_T) - p(q_{T-1})) / dt, as the original's
+        p_last, z = p_last.copy(), z.copy()  # data is about to hold q_{T-1}
+        J_last = J[:3].copy()
+        pin.computeJointJacobians(model, data, q_prev)
+        p_prev = pin.updateFramePlacement(model, data, fid).translation.copy()
+        J_prev = pin.getFrameJacobian(model, data, fid, _LWA)[:3]
+        vel, d_prev, d_last = (p_last - p_prev) / dt, -J_prev / dt, J_last / dt
+    else:  # the joint velocity (q_T - q_{T-1}) / dt
+        vel, d_prev, d_last = v, -eye, eye
+    m = len(vel)
     residual = np.concatenate(
         [
-            w[0] * (oMf.translation - problem.goal_pos),
-            w[1] * v,
+            w[0] * (p_last - problem.goal_pos),
+            w[1] * vel,
             w[2] * (z - problem.goal_axis),
             w[3] * (Jz @ v),
         ]
     )
-    jac = np.zeros((9 + n, 2 * n))
-    eye = np.eye(n) / dt
+    jac = np.zeros((9 + m, 2 * n))
     jac[0:3, n:] = w[0] * J[:3]
-    jac[3 : 3 + n, :n], jac[3 : 3 + n, n:] = -w[1] * eye, w[1] * eye
-    jac[3 + n : 6 + n, n:] = w[2] * Jz
-    jac[6 + n :, :n], jac[6 + n :, n:] = -w[3] * Jz / dt, w[3] * (Jz / dt + dzdot)
+    jac[3 : 3 + m, :n], jac[3 : 3 + m, n:] = w[1] * d_prev, w[1] * d_last
+    jac[3 + m : 6 + m, n:] = w[2] * Jz
+    jac[6 + m :, :n], jac[6 + m :, n:] = -w[3] * Jz / dt, w[3] * (Jz / dt + dzdot)
     return residual, jac
 
 
@@ -235,7 +263,7 @@ def _residuals(
     """
     T, n = x.shape
     c, dt = problem.costs, problem.dt
-    s_acc = math.sqrt(c.acceleration * dt) / dt**2
+    s_acc = _acceleration_scale(c, dt)
     r_acc = np.empty((T, n))
     np.subtract(x[1:], x[:-1], out=r_acc[1:])  # first differences, then second ones
     r_acc[0] = x[0] - problem.q_start
@@ -274,13 +302,13 @@ def _linearize(robot: RobotModel, problem: TrajectoryProblem, point: _Point) -> 
     T, n = point.x.shape
     c, dt = problem.costs, problem.dt
     r_acc, r_fin, r_col = point.residuals
-    s_acc = math.sqrt(c.acceleration * dt) / dt**2
+    s_acc = _acceleration_scale(c, dt)
     grad = np.empty((T, n))  # D^T r_acc: r_t - 2 r_{t+1} + r_{t+2}, zero past the end
     grad[:] = r_acc
     grad[:-1] -= 2.0 * r_acc[1:]
     grad[:-2] += r_acc[2:]
     grad *= 2.0 * s_acc
-    hessian = np.array(_acceleration_band(n, T, float(dt), float(c.acceleration)))
+    hessian = np.array(_acceleration_band(n, T, float(dt), float(c.acceleration), c.metric))
 
     J_fin = point.final_jacobian
     m = J_fin.shape[1]
@@ -464,6 +492,77 @@ def solve_trajectory(
     return TrajectorySolution(
         np.vstack([problem.q_start, point.x]), point.cost, iterations, converged
     )
+
+
+def solve_trajectory_newton(
+    robot: RobotModel,
+    problem: TrajectoryProblem,
+    q_init: np.ndarray | None = None,
+    max_iterations: int = 20,
+    damping: float = 1e-3,
+    max_step: float = 1.0,
+    stop_tolerance: float = 1e-2,
+    max_evaluations: int = 1000,
+) -> TrajectorySolution:
+    """The authors' solver: ``optNewton`` of their framework (``Optim/optimization.cpp``).
+
+    Damped Gauss-Newton steps ``Delta = -(H + lambda I)^-1 g`` (the same banded normal equations
+    as :func:`solve_trajectory`), capped at ``max_step`` in every joint, with a backtracking line
+    search (step factor alpha, x0.1 after a rejected trial, square-rooted after an accepted one;
+    lambda halves after every accepted full step). It stops *without an update* when the step is
+    below ``stop_tolerance / 10`` in every joint (so most warm-started replans change nothing),
+    and after an update when it was below ``stop_tolerance``, after ``max_iterations`` steps or
+    ``max_evaluations`` cost evaluations. ``lambda`` starts at ``damping`` (the original's 1e-3).
+
+    Returns:
+        The trajectory; ``converged`` tells whether a tolerance, not a limit, stopped it.
+
+    Raises:
+        SolverError: if the cost is not finite at the start or the factorization fails.
+    """
+    data = robot.model.createData()
+    x = _free_knots(robot, problem, _initial_guess(problem) if q_init is None else q_init)
+    current = _evaluate(robot, data, problem, x)
+    fx = current.equations.cost
+    if not math.isfinite(fx):
+        raise SolverError(f"non-finite trajectory cost {fx} at the initial guess", problem)
+    lam, alpha, evaluations, iterations, converged = damping, 1.0, 1, 0, False
+    while True:
+        iterations += 1
+        band = np.array(current.equations.hessian)
+        band[0] += lam
+        try:
+            delta = solveh_banded(band, -current.equations.gradient, lower=True, check_finite=False)
+        except (LinAlgError, ValueError) as e:
+            raise SolverError(f"Newton Cholesky failed: {e}", problem) from e
+        delta = delta.reshape(x.shape)
+        size = float(np.max(np.abs(delta)))
+        if max_step > 0.0 and size > max_step:
+            delta *= max_step / size
+            size = max_step
+        if lam < 2.0 and size < 0.1 * stop_tolerance:  # the lazy stop: no update
+            converged = True
+            break
+        while True:  # line search
+            trial = x + alpha * delta
+            point = _residuals(robot, data, problem, trial)
+            evaluations += 1
+            if math.isfinite(point.cost) and point.cost <= fx:
+                x, fx = trial, point.cost
+                current = _linearize(robot, problem, point)
+                if alpha > 0.9:
+                    lam *= 0.5
+                alpha = math.sqrt(alpha)
+                break
+            if alpha * size < 1e-3 * stop_tolerance or evaluations > max_evaluations:
+                break
+            alpha *= 0.1
+        if lam < 2.0 and (size < stop_tolerance or alpha * size < 1e-3 * stop_tolerance):
+            converged = True
+            break
+        if evaluations >= max_evaluations or iterations >= max_iterations:
+            break
+    return TrajectorySolution(np.vstack([problem.q_start, x]), fx, iterations, converged)
 
 
 def shift_warm_start(solution_q: np.ndarray, steps_new: int) -> np.ndarray:

@@ -15,6 +15,9 @@ import numpy as np
 
 from amex.errors import ConfigError, SolverError
 
+METRICS = ("identity", "original")
+VELOCITY_SPACES = ("joint", "tcp")
+
 
 @dataclass(frozen=True)
 class TrajectoryCosts:
@@ -28,6 +31,11 @@ class TrajectoryCosts:
         final_axis_velocity: weight of the squared TCP z-axis rate at the end [s^2].
         collision: weight of sum over knots and pairs of max(0, 1 - d / margin)^2.
         collision_margin: distance below which the collision term acts [m].
+        metric: joint metric diag(H) of the acceleration term, ``sum_t q_ddot_t^T H q_ddot_t dt``
+            (:func:`joint_metric`); empty: the identity.
+        final_velocity_space: the final velocity term on the joints (``joint``, ours:
+            ``(q_T - q_{T-1}) / dt``) or on the TCP position (``tcp``, the original's:
+            ``(p(q_T) - p(q_{T-1})) / dt``).
     """
 
     acceleration: float = 1.0
@@ -37,14 +45,39 @@ class TrajectoryCosts:
     final_axis_velocity: float = 1e3
     collision: float = 1.0
     collision_margin: float = 0.02  # [m]
+    metric: tuple[float, ...] = ()
+    final_velocity_space: str = "joint"
 
     def __post_init__(self) -> None:
-        for name in (f.name for f in fields(self) if f.name != "collision_margin"):  # weights
+        if self.final_velocity_space not in VELOCITY_SPACES:
+            raise ConfigError.invalid(
+                "final_velocity_space", self.final_velocity_space, VELOCITY_SPACES
+            )
+        object.__setattr__(self, "metric", tuple(float(h) for h in self.metric))
+        if not all(math.isfinite(h) and h > 0.0 for h in self.metric):
+            raise ConfigError.invalid("costs.metric", self.metric, "finite weights > 0")
+        not_weights = ("collision_margin", "metric", "final_velocity_space")
+        weights = (f.name for f in fields(self) if f.name not in not_weights)
+        for name in weights:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
         if not (math.isfinite(self.collision_margin) and self.collision_margin > 0.0):
             raise ConfigError.invalid("costs.collision_margin", self.collision_margin, "> 0 [m]")
+
+
+def joint_metric(kind: str, n: int) -> tuple[float, ...]:
+    """The joint metric diag(H) named ``kind`` for an ``n``-joint arm (empty: the identity).
+
+    ``original``: H = diag(sqrt(n), sqrt(n - 1), ..., 1), the default metric of the authors'
+    framework (for their 7-joint chain diag(sqrt 7, sqrt 6, sqrt 5, 2, sqrt 3, sqrt 2, 1)):
+    accelerating a joint near the base costs more, roughly as it moves more of the arm.
+    """
+    if kind == "identity":
+        return ()
+    if kind == "original":
+        return tuple(math.sqrt(n - j) for j in range(n))
+    raise ConfigError.invalid("metric", kind, METRICS)
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,14 +14,17 @@ class ReferencePlan:
     Sample k is at time ``k * dt``; the plan lasts ``duration = (len(q) - 1) * dt``.
 
     Attributes:
-        q: joint trajectory, shape (N + 1, 7) [rad]; ``q[0]`` is the start.
+        q: joint trajectory, shape (N + 1, n) [rad]; ``q[0]`` is the start.
         y: task-space image tau_ref: TCP position [m] and TCP z-axis, shape (N + 1, 6).
         dt: sample period [s].
+        metric: the joint metric diag(H) its acceleration cost used (empty: identity); CR
+            replans with the same one.
     """
 
     q: np.ndarray
     y: np.ndarray
     dt: float
+    metric: tuple[float, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -52,6 +55,12 @@ class PlanConfig:
         final_velocity: weight of the final joint velocity (original 1e3).
         final_axis: weight of the final TCP z-axis error (original 1e4).
         final_axis_velocity: weight of the final TCP z-axis velocity (original 1e3).
+        metric: joint metric of the acceleration term, ``identity`` or ``original`` (the
+            authors' H = diag(sqrt(n), ..., 1); :func:`~amex.plan.problem.joint_metric`).
+        final_velocity_space: the final velocity term on the ``joint`` velocities (ours) or on
+            the ``tcp`` position's (the original's).
+        solver: ``levenberg`` (:func:`~amex.plan.optimizer.solve_trajectory`) or ``newton``
+            (the authors' :func:`~amex.plan.optimizer.solve_trajectory_newton`).
     """
 
     duration: float = 4.0
@@ -62,10 +71,13 @@ class PlanConfig:
     final_velocity: float = 1e3
     final_axis: float = 1e4
     final_axis_velocity: float = 1e3
+    metric: str = "identity"
+    final_velocity_space: str = "joint"
+    solver: str = "levenberg"
 
     def cost_weights(self) -> dict[str, float]:
         """The plan's cost weights, named as :class:`~amex.plan.optimizer.TrajectoryCosts` does."""
-        names = ("acceleration", "final_position", "final_velocity", "final_axis")
+        names = ("acceleration", "final_position", "final_velocity", "final_axis")  # not metric
         return {name: getattr(self, name) for name in (*names, "final_axis_velocity")}
 
     @property

@@ -1,0 +1,109 @@
+"""Stopping cleanly: signals as exceptions, and sweep workers that never outlive their sweep.
+
+* :class:`Interrupted`: SIGINT or SIGTERM turned into an exception (a :class:`KeyboardInterrupt`,
+  so joblib aborts a sweep's remaining jobs and kills its workers on the way out), raised in the
+  main thread between two Python bytecodes: ``finally`` blocks run, the open episode log is
+  finished, the run directory's lock is released, and the rows written stay.
+* :func:`watch_parent`: a sweep worker (a joblib/loky process, a submitit local job) whose
+  launching process dies, even by SIGKILL, notices within half a second that it was re-parented
+  and stops itself with SIGTERM (forcibly after ``grace`` seconds).
+* :func:`count_rows`: how many episodes a run or sweep directory holds, for the closing line.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from types import FrameType
+
+#: Environment variable holding the pid of the process that launched a sweep.
+LAUNCHER_PID = "AMEX_LAUNCHER_PID"
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class Interrupted(KeyboardInterrupt):
+    """A stop signal arrived; ``signum`` says which (exit code ``128 + signum``)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+    def __reduce__(self) -> tuple:
+        """Picklable, so a sweep worker can send it back to the launching process."""
+        return (Interrupted, (self.signum,))
+
+
+def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
+    raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def signals_raise(signums: tuple[int, ...] = STOP_SIGNALS) -> Iterator[None]:
+    """Within the block, ``signums`` raise :class:`Interrupted` (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {s: signal.signal(s, _raise_interrupted) for s in signums}
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def signal_code(error: BaseException) -> int:
+    """The conventional exit code of a stop: 128 + the signal number (130 for Ctrl-C)."""
+    return 128 + int(getattr(error, "signum", signal.SIGINT))
+
+
+class ParentWatch:
+    """The watch of :func:`watch_parent`: ``orphaned`` is set once the parent is gone."""
+
+    def __init__(self) -> None:
+        self.orphaned = threading.Event()
+        self._stop = threading.Event()
+
+    def stop(self) -> None:
+        """End the watch (the job finished while its parent lived)."""
+        self._stop.set()
+
+
+def watch_parent(parent: int, period: float = 0.5, grace: float = 10.0) -> ParentWatch | None:
+    """Stop this process when ``parent`` exits, if ``parent`` is this process's parent now.
+
+    A daemon thread polls ``os.getppid()``; once the process has been re-parented (the parent
+    died, however), it sends SIGTERM to its own process (:class:`Interrupted` in the main thread,
+    if :func:`signals_raise` is active) and, should the process still live ``grace`` seconds
+    later, ends it with ``os._exit(143)``. Returns None (and watches nothing) when ``parent`` is
+    not the parent, e.g. a SLURM job, whose launcher is on another machine.
+    """
+    if os.getppid() != parent:
+        return None
+    watch = ParentWatch()
+
+    def poll() -> None:
+        while os.getppid() == parent:
+            if watch._stop.wait(period):
+                return
+        watch.orphaned.set()
+        os.kill(os.getpid(), signal.SIGTERM)
+        threading.Event().wait(grace)
+        os._exit(128 + signal.SIGTERM)
+
+    threading.Thread(target=poll, name="amex-parent-watch", daemon=True).start()
+    return watch
+
+
+def count_rows(directory: Path | None) -> int:
+    """Episodes recorded in every ``episodes.csv`` at or below ``directory`` (0 if none)."""
+    if directory is None or not directory.is_dir():
+        return 0
+    total = 0
+    for path in [directory / "episodes.csv", *directory.glob("*/episodes.csv")]:
+        with contextlib.suppress(OSError):
+            total += max(path.read_bytes().count(b"\n") - 1, 0)
+    return total
