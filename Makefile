@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow lint bench table figures studies paper ablation clean
+.PHONY: install run test test-slow test-viewer render-deps lint bench table figures studies paper ablation ablation-table clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,24 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -q -m slow
 
+## Logs in a real browser viewer: Debian's chromium and Foxglove Studio 1.48 (npm), installed here
+## if missing, open logged episodes headless; every topic listed, no player problems (~3 min).
+VIEWER := tests/viewer
+$(VIEWER)/node_modules/.installed: $(VIEWER)/package.json $(VIEWER)/package-lock.json
+	@command -v chromium >/dev/null || { apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium; }
+	cd $(VIEWER) && npm ci --no-audit --no-fund --loglevel=error
+	touch $@
+
+test-viewer: $(STAMP) $(VIEWER)/node_modules/.installed
+	$(BIN)/python -m pytest -q -m viewer -p no:cacheprovider
+
+## Headless OpenGL for amex-log video and Fig. 4's render: Debian's EGL (Mesa), if missing.
+render-deps: $(STAMP)
+	@$(BIN)/python -c "from amex.log.render import gl_context; gl_context(8, 8).free()" 2>/dev/null || \
+	  { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+	    --no-install-recommends libegl1 libegl-mesa0 libgl1-mesa-dri; }
+
 lint: $(STAMP)
 	$(BIN)/ruff check amex tests analysis examples
 	$(BIN)/mypy amex
@@ -40,10 +58,20 @@ bench: $(STAMP)
 ## The paper's Fig. 5 from every episodes.csv under $(RUNS), into analysis/out/.
 table: $(STAMP)
 	$(BIN)/python -m analysis.table $(RUNS)
+	@if [ -d runs/paper_original ] && [ -d runs/paper ]; then \
+	  $(BIN)/python -m analysis.compare original=runs/paper_original ours=runs/paper; \
+	else echo "(make paper and make paper EXPERIMENT=original give the side-by-side analysis/out/compare.md)"; fi
 
-## The paper's figures (Fig. 2 from AMEX itself, Fig. 4 and Fig. 6 analogues) into analysis/out/.
+## The ablation's steps side by side (analysis/out/ablation.md), after make ablation and make paper.
+ablation-table: $(STAMP)
+	$(BIN)/python -m analysis.compare --name ablation.md original=runs/paper_original \
+	  1_harness=$(ABLATION_DIR)/1_harness 2_controller=$(ABLATION_DIR)/2_controller \
+	  3_methods=$(ABLATION_DIR)/3_methods 4_dynamic=$(ABLATION_DIR)/4_dynamic ours=runs/paper
+
+## Fig. 5 as plots from the runs under $(RUNS), then Fig. 2 (from AMEX itself), Fig. 4 and Fig. 6
+## analogues, into analysis/out/ (PNG and PDF).
 figures: $(STAMP)
-	$(BIN)/python -m analysis.figures
+	$(BIN)/python -m analysis.figures --runs $(RUNS)
 
 ## Beyond the paper: robustness (goal speed, noise, prediction) and pr2_like studies (~1.5 h).
 studies: $(STAMP)

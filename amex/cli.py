@@ -21,6 +21,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import contextlib  # noqa: E402
 import itertools  # noqa: E402
+import logging  # noqa: E402
 import re  # noqa: E402
 import sys  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -120,6 +121,12 @@ def load_config(overrides: list[str]) -> Any:
     from amex.config import validate
     from amex.errors import ConfigError
 
+    for override in overrides:  # the typed schemas behind the methods are not methods
+        key, _, value = override.lstrip("+~").partition("=")
+        if key == "method" and value.startswith("schema_"):
+            from amex.methods import METHODS
+
+            raise UsageError(f"invalid method={value!r}; valid: {', '.join(sorted(METHODS))}")
     _register_schemas()
     GlobalHydra.instance().clear()
     try:
@@ -246,6 +253,20 @@ def _fail(message: str) -> None:
     raise SystemExit(2)
 
 
+def _kept_episodes(run_dir: Path, config: Any) -> int:
+    """How many of the run's environments ``run_dir/episodes.csv`` already holds (0 if none)."""
+    from amex.store import EpisodeStore, StoreError, config_hash
+
+    path = run_dir / "episodes.csv"
+    if not path.exists() or path.stat().st_size == 0:
+        return 0
+    try:
+        rows = EpisodeStore.check(path, config_hash(config))
+    except StoreError:
+        return 0  # the run itself reports it
+    return len({int(r["env"]) for r in rows} & set(range(config.episodes)))
+
+
 def _task(cfg: Any) -> None:
     """The Hydra job: one run into Hydra's output directory, with a progress bar."""
     from hydra.core.hydra_config import HydraConfig
@@ -258,6 +279,7 @@ def _task(cfg: Any) -> None:
     from amex.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
+    logging.raiseExceptions = False  # run.log is a record: a full disk must not print tracebacks
     hydra_config = HydraConfig.get()
     run_dir = Path(hydra_config.runtime.output_dir)
     label = f"task {config.task} {config.method.name}"
@@ -273,14 +295,25 @@ def _task(cfg: Any) -> None:
             logging_redirect_tqdm(),
             tqdm(total=episodes, desc=label, unit="ep") as bar,
         ):
-            successes = 0
+            for handler in logging.getLogger().handlers:  # tqdm's console handler: warnings
+                if type(handler).__name__ == "_TqdmLoggingHandler":  # only; the record: run.log
+                    handler.setLevel(logging.WARNING)
+            successes = done = 0
 
             def progress(env: int, result: Any) -> None:
-                nonlocal successes
+                nonlocal successes, done
                 successes += int(result.success)
-                bar.set_postfix(success=f"{successes}/{env + 1}")
+                done += 1
+                bar.set_postfix(success=f"{successes}/{done}")
                 bar.update(1)
 
+            kept = _kept_episodes(run_dir, config)
+            if kept:
+                bar.write(
+                    f"resuming {run_dir}: kept {kept} of {episodes} episodes recorded earlier, "
+                    f"running the other {episodes - kept}",
+                    file=sys.stderr,
+                )
             summary = run(config, run_dir, progress)
     s = summary["success"]["mean"]
     t = summary["final_time"]
@@ -324,6 +357,11 @@ def run_main() -> None:
     argv = multirun_flags + [a for a in sys.argv[1:] if a not in multirun_flags]
     sys.argv[1:] = argv  # Hydra's parser wants -m before the overrides; accept it anywhere
     debug = os.environ.get("AMEX_DEBUG") == "1"
+    if "--help" in argv or "-h" in argv:
+        from amex.usage import help_text
+
+        sys.stdout.write(help_text(Path(CONF_DIR), PROG))
+        return
     informational = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
     try:
         with signals_raise():

@@ -173,6 +173,18 @@ def _run_locked(
         if env < config.episodes and progress is not None:
             progress(env, store.done[env])
     todo = [env for env in range(config.episodes) if env not in store.done]
+    log.info(
+        "task %d %s, %d episodes into %s (config hash %s, scene hash %s); %d recorded earlier, "
+        "%d to run",
+        config.task,
+        config.method.name,
+        config.episodes,
+        run_dir,
+        store.config_hash,
+        store.scene_hash,
+        config.episodes - len(todo),
+        len(todo),
+    )
     if todo:
         context = prepare(config)
     for env in todo:
@@ -181,6 +193,16 @@ def _run_locked(
             log_path = run_dir / "logs" / f"episode_{env:03d}.mcap"
         result = run_one(config, context, env, log_path)
         store.append(result)
+        log.info(
+            "env %d: %s, final distance %.4f m at %.2f s, sum sq. acc. %.4g%s%s",
+            env,
+            "success" if result.success else "no success",
+            result.final_distance,
+            result.final_time,
+            result.sum_sq_acc,
+            ", collided" if result.collided else "",
+            f", failure: {result.failure}" if result.failure else "",
+        )
         if progress is not None:
             progress(env, result)
     results = [store.done[env] for env in range(config.episodes)]
@@ -196,4 +218,12 @@ def _run_locked(
     )
     summary["recorded"] = len(store.done)  # rows in episodes.csv, >= episodes after a shorter rerun
     replace_durably(run_dir / SUMMARY_JSON, (json.dumps(summary, indent=2) + "\n").encode())
+    log.info(
+        "done: success %.3f, final time %.2f +- %.2f s, %d failures; wrote %s",
+        summary["success"]["mean"],
+        summary["final_time"]["mean"],
+        summary["final_time"]["two_std"],
+        summary["failures"],
+        run_dir / SUMMARY_JSON,
+    )
     return summary

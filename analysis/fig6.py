@@ -139,4 +139,4 @@ def _draw(
 
 
 if __name__ == "__main__":
-    print(*plot_fig6(Path(sys.argv[1]) if len(sys.argv) > 1 else Path("analysis/out")))
+    print(*plot_fig6(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "out"))

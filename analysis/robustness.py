@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 
 from amex.argparsing import OneLineParser
+from amex.palette import method_color, method_label
 from analysis.table import _markdown, bootstrap_ci, load_runs
 
 HERE = Path(__file__).resolve().parent
@@ -54,8 +55,6 @@ FAST = 2.0  # goal speed factor of the paired comparison
 #: AMEX prediction variants tried on the fast-goal cell: (lead_time [s], accel_std [m/s^2]).
 TUNING = ((0.0, 0.5), (0.0, 0.1), (0.0, 2.0), (0.1, 0.5), (0.2, 0.5), (0.2, 0.1), (0.4, 0.5))
 PAIRED_METRICS = ("final_time", "success", "sum_sq_acc", "final_distance")
-COLORS = {"amex": "tab:blue", "dmp": "tab:green", "cr": "black"}
-LABELS = {"amex": "AMEX", "dmp": "DMP", "cr": "CR"}
 
 
 @dataclass(frozen=True)
@@ -462,12 +461,12 @@ def plot_sweep(cells: pd.DataFrame, sweep: str, path: Path) -> Path:
             g = sub[(sub.method == method) & (sub.prediction == pred)]
             x = g[key].to_numpy() * scale + (i - 1 + (0.5 if pred else -0.5) / 2) * width
             style = dict(
-                color=COLORS.get(method),
+                color=method_color(method),
                 linestyle="-" if pred else "--",
                 marker="o" if pred else "s",
                 markersize=4,
                 capsize=2,
-                label=f"{LABELS.get(method, method)}, " + ("prediction" if pred else "raw"),
+                label=f"{method_label(method)}, " + ("prediction" if pred else "raw"),
             )
             for ax, (mean, lo, hi) in zip(axes, panels, strict=True):
                 m = g[mean].to_numpy()

@@ -1,21 +1,26 @@
 """``make table``: the paper's Fig. 5 from our runs, the paper's numbers beside ours, paired stats.
 
-Reads every ``episodes.csv`` under a directory (default ``runs/``), checks that they come from one
-benchmark (equal scene hashes: identical environments for every method) and that no (task, method)
-appears with two configurations, then writes into ``analysis/out/``:
+Reads every ``episodes.csv`` under a directory (default ``runs/``) and groups the episodes by
+benchmark configuration (the scene hash: equal hashes mean identical environments for every
+method; a different robot, scale or seed makes another group). For each group it writes into
+``analysis/out/`` (one group) or ``analysis/out/scene_<hash>/`` (several; ``fig5.md`` then lists
+them, with the command-line overrides that set them apart):
 
-* ``fig5.md`` / ``fig5.tex`` / ``fig5.csv``: per task and method, success (0.03 m), success at
-  0.05 m, collisions, final time, sum of squared accelerations and compute time as mean ± 2 std,
-  with the paper's Fig. 5 row beside ours;
-* ``paired.csv`` and a section of ``fig5.md``: paired comparisons on identical environments (AMEX vs
-  DMP, AMEX vs CR, AMEX vs DMP with phase stopping, DMP vs CR, and any other method, e.g. a
-  plugin, against AMEX, DMP and CR): mean difference with a bootstrap 95 % interval and the
-  Wilcoxon signed-rank p-value;
-* the paper's qualitative claims, each marked holds / fails / n/a in ``fig5.md``, plus one
-  diagnostic: smoothness at equal duration (:func:`duration_invariant_smoothness`).
+* ``fig5.md`` / ``fig5.csv``: per task and method, success (0.03 m), success at 0.05 m,
+  collisions, final time, sum of squared accelerations and compute time as mean ± 2 std, with the
+  paper's Fig. 5 row beside ours;
+* ``fig5.tex``: the same as booktabs tables that fit a paper column (:mod:`analysis.latex`);
+* ``paired.csv`` and a section of ``fig5.md``: paired comparisons of every two methods that ran
+  the same environments (a before b in the order AMEX, DMP, DMP-PS, CR, Track, then others):
+  mean difference with a bootstrap 95 % interval and the Wilcoxon signed-rank p-value;
+* the paper's qualitative claims, each marked holds / fails / n/a in ``fig5.md`` (or "too few"
+  when judged on fewer than :data:`MIN_EPISODES` environments per method), plus one diagnostic:
+  smoothness at equal duration (:func:`duration_invariant_smoothness`).
 
-Errors (no runs, a corrupt or truncated csv, mixed configurations) print one line naming the file
-and exit with code 2; the outputs are replaced only when everything succeeded.
+A (task, method) run with two method configurations in one group (e.g. two values of a method
+parameter) appears as two rows, ``method#<config hash>``. Errors (no runs, a corrupt or
+truncated csv) print one line naming the file and exit with code 2; the outputs are replaced
+only when everything succeeded.
 
 Usage: ``python -m analysis.table [RUNS_DIR] [--out DIR]``.
 """
@@ -26,29 +31,44 @@ import math
 import os
 import sys
 import tempfile
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from amex.argparsing import OneLineParser
 from amex.errors import AmexError
 from amex.store import HASH_COLUMNS, StoreError, parse_result, read_rows
+from analysis.comparisons import (  # noqa: F401 - bootstrap_ci: also analysis.table's API
+    METHOD_ORDER,
+    MIN_EPISODES,
+    bootstrap_ci,
+    claims,
+    method_rank,
+    paired,
+)
+from analysis.latex import fig5_latex
 
 HERE = Path(__file__).resolve().parent
 PAPER_CSV = HERE / "paper_fig5.csv"
-METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
-PAIRS = (("amex", "dmp"), ("amex", "cr"), ("amex", "dmp_ps"), ("dmp", "cr"))
-PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_t3")
-BOOTSTRAP = 10_000
 
 
 class TableError(AmexError):
     """The runs cannot make one table; the message names the file(s)."""
 
 
+@dataclass(frozen=True)
+class Benchmark:
+    """The episodes of one benchmark configuration (one scene hash)."""
+
+    scene_hash: str
+    episodes: pd.DataFrame
+    files: tuple[str, ...]
+    overrides: tuple[str, ...]  # command-line overrides shared by its runs (task, method aside)
+
+
 def load_runs(root: Path) -> pd.DataFrame:
-    """All episodes under ``root`` as one DataFrame (a row per episode), checked for consistency."""
+    """All episodes under ``root`` as one DataFrame (a row per episode), typed."""
     if not root.is_dir():
         raise TableError(f"{root}: no such directory (run amex-run first, or RUNS=DIR)")
     files = sorted(root.rglob("episodes.csv"))
@@ -69,21 +89,7 @@ def load_runs(root: Path) -> pd.DataFrame:
     if not frames:
         raise TableError(f"every episodes.csv under {root} is empty")
     df = pd.concat(frames, ignore_index=True)
-    scenes = df.groupby("scene_hash")["file"].first()
-    if len(scenes) > 1:
-        a, b = scenes.iloc[0], scenes.iloc[1]
-        raise TableError(
-            f"runs of different benchmark configurations are mixed: {a} and {b} "
-            f"(scene hash {scenes.index[0]} vs {scenes.index[1]}); point RUNS at one sweep"
-        )
-    configs = df.groupby(["task", "method"])["config_hash"].nunique()
-    mixed = configs[configs > 1]
-    if len(mixed):
-        task, method = mixed.index[0]
-        files_of = df[(df.task == task) & (df.method == method)].groupby("config_hash")["file"]
-        a, b = files_of.first().iloc[:2]
-        raise TableError(f"task {task} {method} ran with two configurations: {a} and {b}")
-    df = df.drop_duplicates(subset=["task", "method", "env"], keep="first")
+    df = df.drop_duplicates(subset=["scene_hash", "config_hash", "task", "method", "env"])
     for col in ("task", "env", "seed"):
         df[col] = df[col].astype(int)
     for col in ("success", "success_005", "collided"):
@@ -92,12 +98,45 @@ def load_runs(root: Path) -> pd.DataFrame:
         "final_distance",
         "final_time",
         "sum_sq_acc",
+        "sum_sq_acc_paper",
+        "int_sq_acc",
         "compute_time_median",
         "compute_time_mean",
     ):
         df[col] = df[col].astype(float)
     df["sum_sq_acc_t3"] = duration_invariant_smoothness(df.sum_sq_acc, df.final_time)
     return df
+
+
+def _overrides(files: list[str]) -> tuple[str, ...]:
+    """The Hydra overrides every run of ``files`` shares, but task, method, episodes and log."""
+    import yaml
+
+    common: set[str] | None = None
+    for file in files:
+        path = Path(file).parent / ".hydra" / "overrides.yaml"
+        try:
+            items = {str(o) for o in yaml.safe_load(path.read_text()) or []}
+        except (OSError, yaml.YAMLError):
+            items = set()
+        common = items if common is None else common & items
+    skip = ("task=", "method=", "episodes=", "log=", "hydra.", "+hydra.")
+    return tuple(sorted(o for o in common or () if not o.startswith(skip)))
+
+
+def benchmarks(df: pd.DataFrame) -> list[Benchmark]:
+    """``df`` split by scene hash, largest first; method variants labelled ``method#hash``."""
+    groups = []
+    for scene, g in df.groupby("scene_hash", sort=False):
+        g = g.copy()
+        variants = g.groupby(["task", "method"])["config_hash"].transform("nunique")
+        several = variants > 1
+        g.loc[several, "method"] = g.method[several] + "#" + g.config_hash[several].str[:6]
+        g = g.drop_duplicates(subset=["task", "method", "env"], keep="first")
+        files = sorted(set(g.file))
+        bench = Benchmark(str(scene), g.reset_index(drop=True), tuple(files), _overrides(files))
+        groups.append(bench)
+    return sorted(groups, key=lambda b: (-len(b.episodes), b.scene_hash))
 
 
 def duration_invariant_smoothness(sum_sq_acc, final_time):
@@ -124,6 +163,7 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
     for (task, method), g in df.groupby(["task", "method"]):
         ft, ft2 = _mean_2std(g.final_time)
         acc, acc2 = _mean_2std(g.sum_sq_acc)
+        paper_acc, paper_acc2 = _mean_2std(g.sum_sq_acc_paper)
         ct, ct2 = _mean_2std(g.compute_time_mean)
         records.append(
             {
@@ -138,6 +178,9 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
                 "final_time_2std": ft2,
                 "sum_sq_acc_mean": acc,
                 "sum_sq_acc_2std": acc2,
+                "sum_sq_acc_paper_mean": paper_acc,
+                "sum_sq_acc_paper_2std": paper_acc2,
+                "int_sq_acc_mean": float(g.int_sq_acc.mean()),
                 "sum_sq_acc_t3_median": float(g.sum_sq_acc_t3.median()),
                 "compute_time_mean": ct,
                 "compute_time_2std": ct2,
@@ -153,123 +196,6 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
 def paper_table() -> pd.DataFrame:
     """The paper's Fig. 5 as data."""
     return pd.read_csv(PAPER_CSV, comment="#")
-
-
-def bootstrap_ci(d: np.ndarray, seed: int = 0, n: int = BOOTSTRAP) -> tuple[float, float]:
-    """95 % percentile bootstrap interval of the mean of ``d`` (seeded: reproducible)."""
-    rng = np.random.default_rng(seed)
-    means = rng.choice(d, size=(n, len(d)), replace=True).mean(axis=1)
-    lo, hi = np.percentile(means, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
-def paired(df: pd.DataFrame) -> pd.DataFrame:
-    """Paired comparisons (method a minus method b) on the environments both ran."""
-    from scipy.stats import wilcoxon
-
-    records = []
-    methods = set(df.method)
-    others = sorted(methods - set(METHOD_ORDER))  # e.g. plugin methods: each against the paper's
-    pairs = [*PAIRS, *((m, b) for m in others for b in ("amex", "dmp", "cr"))]
-    for task in sorted(df.task.unique()):
-        sub = df[df.task == task]
-        for a, b in pairs:
-            if a not in methods or b not in methods:
-                continue
-            wide = sub[sub.method.isin([a, b])].pivot(index="env", columns="method")
-            wide = wide.dropna()
-            if len(wide) < 2:
-                continue
-            for metric in PAIRED_METRICS:
-                d = (wide[(metric, a)].astype(float) - wide[(metric, b)].astype(float)).to_numpy()
-                lo, hi = bootstrap_ci(d, seed=task)
-                p = 1.0 if np.all(d == 0) else float(wilcoxon(d, zero_method="zsplit").pvalue)
-                records.append(
-                    {
-                        "task": task,
-                        "a": a,
-                        "b": b,
-                        "metric": metric,
-                        "pairs": len(d),
-                        "mean_diff": float(d.mean()),
-                        "ci_low": lo,
-                        "ci_high": hi,
-                        "wilcoxon_p": p,
-                    }
-                )
-    return pd.DataFrame.from_records(records)
-
-
-def claims(ours: pd.DataFrame) -> list[tuple[str, str, str]]:
-    """The paper's qualitative claims checked on our aggregates: (claim, verdict, evidence)."""
-    out: list[tuple[str, str, str]] = []
-    paper_methods = ("amex", "dmp", "cr")
-    have = set(ours.method)
-    tasks = sorted(t for t in ours.task.unique() if t >= 1)
-
-    def get(task: int, method: str, col: str) -> float:
-        row = ours[(ours.task == task) & (ours.method == method)]
-        return float(row[col].iloc[0]) if len(row) else math.nan
-
-    def verdict(name: str, needed: tuple[str, ...], test, fmt) -> None:
-        if not set(needed) <= have or not tasks:
-            missing = ", ".join(sorted(set(needed) - have)) or "tasks 1-4"
-            out.append((name, "n/a", f"needs {missing}"))
-            return
-        results = {t: test(t) for t in tasks}
-        ok = all(results.values())
-        evidence = "; ".join(f"task {t}: {fmt(t)}" for t in tasks)
-        out.append((name, "holds" if ok else "fails", evidence))
-
-    present = tuple(m for m in paper_methods if m in have)
-    verdict(
-        "all methods above 0.9 success",
-        present or paper_methods,
-        lambda t: all(get(t, m, "success") > 0.9 for m in present),
-        lambda t: ", ".join(f"{m} {get(t, m, 'success'):.2f}" for m in present),
-    )
-    for claim, col in (
-        ("CR is the smoothest (lowest sum of squared accelerations)", "sum_sq_acc_mean"),
-        (
-            "CR is the smoothest at equal duration (median sum sq. acc. x final time^3; "
-            "diagnostic)",
-            "sum_sq_acc_t3_median",
-        ),
-    ):
-        verdict(
-            claim,
-            paper_methods,
-            lambda t, c=col: get(t, "cr", c) < min(get(t, "amex", c), get(t, "dmp", c)),
-            lambda t, c=col: ", ".join(f"{m} {get(t, m, c):.3g}" for m in paper_methods),
-        )
-    verdict(
-        "AMEX is smoother than DMP",
-        ("amex", "dmp"),
-        lambda t: get(t, "amex", "sum_sq_acc_mean") < get(t, "dmp", "sum_sq_acc_mean"),
-        lambda t: (
-            f"amex {get(t, 'amex', 'sum_sq_acc_mean'):.3g} vs dmp "
-            f"{get(t, 'dmp', 'sum_sq_acc_mean'):.3g}"
-        ),
-    )
-    verdict(
-        "compute time CR >> AMEX > DMP (>> meaning 10x)",
-        paper_methods,
-        lambda t: (
-            get(t, "cr", "compute_time_mean") > 10 * get(t, "amex", "compute_time_mean")
-            and get(t, "amex", "compute_time_mean") > get(t, "dmp", "compute_time_mean")
-        ),
-        lambda t: ", ".join(f"{m} {get(t, m, 'compute_time_mean'):.2e}" for m in paper_methods),
-    )
-    verdict(
-        "AMEX's final time spreads more than CR's",
-        ("amex", "cr"),
-        lambda t: get(t, "amex", "final_time_2std") > get(t, "cr", "final_time_2std"),
-        lambda t: (
-            f"2 std amex {get(t, 'amex', 'final_time_2std'):.2f} s vs cr "
-            f"{get(t, 'cr', 'final_time_2std'):.2f} s"
-        ),
-    )
-    return out
 
 
 def _pm(mean: float, two_std: float, fmt: str) -> str:
@@ -298,6 +224,9 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
                 "sum sq. acc. (paper)": _pm(
                     r.sum_sq_acc_mean_paper, r.sum_sq_acc_2std_paper, ".2e"
                 ),
+                "sum sq. acc. as the paper computed it": _pm(
+                    r.sum_sq_acc_paper_mean, r.sum_sq_acc_paper_2std, ".2e"
+                ),
                 "compute [s]": _pm(r.compute_time_mean, r.compute_time_2std, ".2e"),
                 "compute (paper)": _pm(r.compute_time_mean_paper, r.compute_time_2std_paper, ".2e"),
                 "compute median [s]": f"{r.compute_time_median:.2e}",
@@ -315,10 +244,15 @@ def _markdown(df: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
-def render_markdown(table: pd.DataFrame, pairs: pd.DataFrame, verdicts, source: Path) -> str:
-    """The whole report as Markdown."""
+def render_markdown(
+    table: pd.DataFrame, pairs: pd.DataFrame, verdicts, source: Path, bench: Benchmark | None = None
+) -> str:
+    """The whole report of one benchmark configuration as Markdown."""
+    title = f"# Fig. 5, reproduced (from `{source}`)\n"
+    if bench is not None:
+        title += f"\nBenchmark configuration {_describe(bench)}.\n"
     parts = [
-        f"# Fig. 5, reproduced (from `{source}`)\n",
+        title,
         "Mean ± 2 std over the environments of each run; the paper's numbers (Englert & "
         "Toussaint 2014, Fig. 5) beside ours. Success at 0.03 m.\n",
         _markdown(table),
@@ -337,31 +271,75 @@ def render_markdown(table: pd.DataFrame, pairs: pd.DataFrame, verdicts, source: 
             )
         )
     else:
-        parts.append("(no pair of methods ran on the same environments)")
+        parts.append("(no two methods ran the same environments of a task)")
     parts.append("\n## The paper's claims in our numbers\n")
     parts.append(_markdown(pd.DataFrame(verdicts, columns=["claim", "verdict", "evidence"])))
     return "\n".join(parts) + "\n"
 
 
-def write_outputs(root: Path, out_dir: Path) -> list[Path]:
-    """Build every output in a temporary directory, then move them into ``out_dir``."""
-    df = load_runs(root)
-    ours = aggregate(df)
-    table = combined(ours, paper_table())
-    pairs = paired(df)
-    verdicts = claims(ours)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    names = {
-        "fig5.md": render_markdown(table, pairs, verdicts, root),
-        "fig5.tex": table.to_latex(index=False, escape=True),
+def _describe(bench: Benchmark) -> str:
+    """``scene hash 1a2b...: robot=ur5 seed=3 (2 runs, tasks 1, 3; methods amex, dmp)``."""
+    df = bench.episodes
+    settings = " ".join(bench.overrides) or "the defaults"
+    tasks = ", ".join(str(t) for t in sorted(df.task.unique()))
+    methods = ", ".join(sorted(set(df.method), key=method_rank))
+    return (
+        f"`{bench.scene_hash}`: {settings} ({len(bench.files)} run"
+        f"{'s' if len(bench.files) != 1 else ''}, {len(df)} episodes; "
+        f"tasks {tasks}; methods {methods})"
+    )
+
+
+def report(bench: Benchmark, source: Path) -> dict[str, str]:
+    """The files of one benchmark configuration's report, by name."""
+    ours = aggregate(bench.episodes)
+    paper = paper_table()
+    pairs = paired(bench.episodes)
+    return {
+        "fig5.md": render_markdown(combined(ours, paper), pairs, claims(ours), source, bench),
+        "fig5.tex": fig5_latex(ours, paper),
         "fig5.csv": ours.to_csv(index=False),
         "paired.csv": pairs.to_csv(index=False),
     }
+
+
+def _index(groups: list[Benchmark], source: Path) -> str:
+    lines = [
+        f"# Fig. 5 from `{source}`: {len(groups)} benchmark configurations\n",
+        "Runs of different benchmark configurations (scene hashes: robot, scene scale, seed, "
+        "plan, controller, ...) ran different environments, so each has its own table, in "
+        "`scene_<hash>/` beside this file; `make table RUNS=<dir>` on one sweep's directory "
+        "makes just its table.\n",
+    ]
+    for bench in groups:
+        lines.append(f"* `scene_{bench.scene_hash}/fig5.md`: {_describe(bench)}")
+        top = Path(os.path.commonpath(bench.files)) if bench.files else source
+        lines.append(f"  runs under `{top if top.name != 'episodes.csv' else top.parent}`")
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(root: Path, out_dir: Path) -> list[Path]:
+    """Build every output in a temporary directory, then move them into ``out_dir``."""
+    groups = benchmarks(load_runs(root))
+    files: dict[str, str] = {}
+    if len(groups) == 1:
+        files.update(report(groups[0], root))
+    else:
+        files["fig5.md"] = _index(groups, root)
+        for bench in groups:
+            texts = report(bench, root)
+            files.update({f"scene_{bench.scene_hash}/{k}": v for k, v in texts.items()})
+    out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     with tempfile.TemporaryDirectory(dir=out_dir) as tmp:
-        for name, text in names.items():
+        for name, text in files.items():
+            (Path(tmp) / name).parent.mkdir(parents=True, exist_ok=True)
             (Path(tmp) / name).write_text(text)
-        for name in names:
+        if len(groups) > 1:  # the single-configuration outputs of an earlier call would mislead
+            for name in ("fig5.tex", "fig5.csv", "paired.csv"):
+                (out_dir / name).unlink(missing_ok=True)
+        for name in files:
+            (out_dir / name).parent.mkdir(parents=True, exist_ok=True)
             os.replace(Path(tmp) / name, out_dir / name)
             written.append(out_dir / name)
     return written
@@ -379,6 +357,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"make table: error: {e}", file=sys.stderr)
         return 2
     print(Path(written[0]).read_text())
+    for path in written[1:]:  # several configurations: each one's Fig. 5 table after the index
+        if path.name == "fig5.md":
+            print(f"## {path.parent.name}\n")
+            print(path.read_text().split("\n## Paired")[0].split("\n\n", 1)[1])
     for path in written:
         print(f"wrote {path}", file=sys.stderr)
     return 0

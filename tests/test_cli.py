@@ -140,3 +140,47 @@ def test_slurm_launcher_config_composes(tmp_path):
     proc = _run(["hydra/launcher=slurm", "--cfg", "hydra"], tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "SlurmLauncher" in proc.stdout and "cpus_per_task: 1" in proc.stdout
+
+
+def test_help_lists_tasks_methods_robots_experiments_options_and_outputs(tmp_path):
+    proc = _run(["--help"], tmp_path)
+    assert proc.returncode == 0 and not proc.stderr
+    out = proc.stdout
+    conf = Path(__file__).resolve().parent.parent / "conf"
+    for section in ("tasks (task=N)", "methods (method=NAME", "robots (robot=NAME",
+                    "experiments (experiment=NAME", "main options", "outputs:"):  # fmt: skip
+        assert section in out
+    methods = out.split("methods (")[1].split("\n\n")[0]
+    assert "schema_" not in methods and "  dmp_ps  " in methods
+    for yaml_file in conf.glob("robot/*.yaml"):
+        assert f"  {yaml_file.stem}  " in out  # discovered from the files
+    for yaml_file in (conf / "experiment").rglob("*.yaml"):
+        name = yaml_file.relative_to(conf / "experiment").with_suffix("").as_posix()
+        assert f"  {name}  " in out
+    assert "outer_hz=100.0" in out and "[Hz]" in out and "max_time=10.0" in out
+    assert "episodes.csv" in out and "hydra.run.dir=DIR" in out
+    assert not list(tmp_path.iterdir())  # no run directory
+
+
+def test_a_schema_is_not_a_method(tmp_path):
+    proc = _run(["method=schema_amex"], tmp_path)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "invalid method='schema_amex'; valid: amex, cr" in proc.stderr
+    assert not (tmp_path / "runs").exists()
+
+
+def test_resumed_run_says_what_it_kept_and_run_log_records_the_episodes(tmp_path):
+    args = ["task=0", "method=dmp", "hydra.run.dir=out"]
+    first = _run([*args, "episodes=2"], tmp_path)
+    assert first.returncode == 0, first.stderr
+    assert "resuming" not in first.stderr and "success=2/2" in first.stderr
+    second = _run([*args, "episodes=3"], tmp_path)
+    assert second.returncode == 0, second.stderr
+    assert f"resuming {tmp_path / 'out'}: kept 2 of 3 episodes recorded earlier, running the " \
+        "other 1" in second.stderr
+    assert "success=3/3" in second.stderr  # counts the kept episodes too
+    assert "[INFO]" not in second.stderr  # the record goes to run.log, not the terminal
+    log = (tmp_path / "out" / "run.log").read_text()
+    assert "2 recorded earlier, 1 to run" in log and "env 2: success" in log
+    assert "done: success 1.000" in log
+    assert not (tmp_path / "out" / "cli.log").exists()

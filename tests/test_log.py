@@ -96,8 +96,9 @@ def test_reader_gives_the_episode_back(logged):
         ("world", "panda_link0"),
         ("panda_link0", "panda_link1"),
     ]
-    reference = data.messages["/reference"][0].data
-    assert np.allclose(reference["y"], context.plan.y, atol=1e-6)
+    samples = data.messages["/reference"][0].data["samples"]
+    assert np.allclose([s["position"] + s["axis"] for s in samples], context.plan.y, atol=1e-6)
+    assert np.allclose(data.reference_path(), context.plan.y[:, :3], atol=1e-6)
     assert np.allclose(data.times("/tcp"), np.arange(100) * 0.01)
     phase = data.series("/method", "phase")
     assert phase.shape == (100,) and np.all(np.diff(phase) < 0)
@@ -325,11 +326,17 @@ def test_plot_writes_a_png(logged, tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and png.stat().st_size > 20_000
 
 
-def test_layout_points_the_urdf_layer_at_this_machines_urdf(tmp_path):
+def test_layout_points_the_urdf_layer_at_the_logs_urdf(logged, tmp_path):
     import json
 
     out = tmp_path / "layout.json"
-    assert main(["layout", "-o", str(out)]) == 0
+    assert main(["layout", str(logged[3]), "-o", str(out)]) == 0
     layout = json.loads(out.read_text())
-    urdf = layout["configById"]["3D!amex"]["layers"]["panda-urdf"]
+    urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]
     assert urdf["layerId"] == "foxglove.Urdf" and Path(urdf["filePath"]).exists()
+    out = tmp_path / "ur5_layout.json"
+    assert main(["layout", "--robot", "ur5", "-o", str(out)]) == 0  # no log: a catalogue robot
+    layout = json.loads(out.read_text())
+    urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]
+    assert urdf["filePath"].endswith("ur5_robot.urdf") and Path(urdf["filePath"]).exists()
+    assert len(layout["configById"]["Plot!qdd"]["paths"]) == 6

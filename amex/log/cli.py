@@ -33,10 +33,9 @@ from amex.log.reader import (
     recover,
     topics_with_numbers,
 )
+from amex.log.serve import DEFAULT_PORT
 
 PROG = "amex-log"
-LAYOUT_FILE = Path(__file__).with_name("foxglove_layout.json")
-URDF_PLACEHOLDER = "PANDA_URDF_PATH"
 
 
 def _fail(message: str) -> NoReturn:
@@ -65,9 +64,25 @@ def _parser() -> _Parser:
     p = sub.add_parser("recover", help="rewrite a truncated log as a valid indexed MCAP file")
     p.add_argument("file", type=Path, metavar="FILE")
     p.add_argument("-o", "--output", type=Path, metavar="OUT", required=True)
-    p = sub.add_parser("layout", help="write the Foxglove layout, with this machine's URDF path")
+    p = sub.add_parser("layout", help="write a log's Foxglove layout (URDF as a file path)")
+    p.add_argument("file", type=Path, metavar="FILE", nargs="?", help="default: --robot's")
     p.add_argument("-o", "--output", type=Path, metavar="JSON", default=Path("amex_layout.json"))
-    p.add_argument("--robot", default="panda", help="a catalogue robot (default: panda)")
+    p.add_argument("--robot", default="panda", help="without FILE: a catalogue robot (panda)")
+    p = sub.add_parser(
+        "view", help="serve a log, its robot and layout to Foxglove in the browser; print the URL"
+    )
+    p.add_argument("file", type=Path, metavar="FILE")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT, help="0: any free port")
+    p.add_argument("--host", default="127.0.0.1", help="interface to listen on")
+    p.add_argument("--studio", type=Path, metavar="DIR", help="a Foxglove Studio web build")
+    p = sub.add_parser(
+        "video", help="film an episode (MuJoCo render, MP4); 2-3 logs of one env side by side"
+    )
+    p.add_argument("files", type=Path, nargs="+", metavar="FILE")
+    p.add_argument("-o", "--output", type=Path, metavar="MP4", help="default: FILE with .mp4")
+    p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
+    p.add_argument("--size", default="640x480", metavar="WxH", help="one panel [px]")
+    p.add_argument("--speed", type=float, default=1.0, help="simulated s per s of film")
     return parser
 
 
@@ -80,6 +95,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         "export": export,
         "recover": recover_cmd,
         "layout": layout,
+        "view": view,
+        "video": video,
     }
     try:
         commands[args.command](args)
@@ -345,10 +362,10 @@ def _table(data: LogData, topic: str) -> list[dict[str, Any]]:
         if not isinstance(m.data, dict):
             continue
         nested = {k: v for k, v in m.data.items() if _is_matrix(v)}
-        if nested:  # e.g. /reference: one row per sample of its matrix
+        if nested:  # e.g. /reference: one row per sample
             for key, matrix in nested.items():
                 for i, sample in enumerate(matrix):
-                    flat = {"index": i, **{f"{key}_{j}": x for j, x in enumerate(sample)}}
+                    flat = {"index": i, **_flatten(sample, key)}
                     if "dt" in m.data:
                         flat = {"time": i * m.data["dt"], **flat}
                     rows.append(flat)
@@ -376,7 +393,21 @@ def _joint_table(data: LogData) -> dict[str, Any]:
 
 
 def _is_matrix(value: Any) -> bool:
-    return isinstance(value, list) and bool(value) and isinstance(value[0], list)
+    """A list of lists or of objects (``/reference``'s samples)."""
+    return isinstance(value, list) and bool(value) and isinstance(value[0], (list, dict))
+
+
+def _flatten(sample: Any, key: str) -> dict[str, Any]:
+    """One sample as columns: a list as ``key_0, key_1..``, an object's lists as ``name_0..``."""
+    if isinstance(sample, list):
+        return {f"{key}_{j}": x for j, x in enumerate(sample)}
+    flat: dict[str, Any] = {}
+    for name, value in sample.items():
+        if isinstance(value, list):
+            flat.update({f"{name}_{j}": x for j, x in enumerate(value)})
+        else:
+            flat[name] = value
+    return flat
 
 
 def recover_cmd(args: argparse.Namespace) -> None:
@@ -391,21 +422,80 @@ def recover_cmd(args: argparse.Namespace) -> None:
 
 
 def layout(args: argparse.Namespace) -> None:
-    """Write the shipped Foxglove layout with the absolute path of the robot's URDF."""
-    from amex.robot import RobotConfig, resolve
+    """Write the log's Foxglove layout, its URDF layer reading the robot from a file path."""
+    from amex.log.layout import build_layout
 
+    if args.file is not None:
+        layout = build_layout(read_log(args.file))
+    else:
+        from amex.robot import load_robot
+
+        robot = load_robot(args.robot)
+        layout = build_layout(
+            None, robot={"name": robot.name, "urdf_path": robot.urdf_path,
+                         "joint_names": list(robot.joint_names)},
+        )  # fmt: skip
     output = _output(args.output, [".json"], "a JSON file")
-    text = LAYOUT_FILE.read_text()
-    urdf = os.path.realpath(resolve(RobotConfig(name=args.robot)).urdf_path)
-    text = text.replace(URDF_PLACEHOLDER, json.dumps(urdf)[1:-1])
     output.parent.mkdir(parents=True, exist_ok=True)
     try:
-        create_new(output, text.encode())
+        create_new(output, (json.dumps(layout, indent=2) + "\n").encode())
     except FileExistsError:
         raise LogExistsError(f"output file {output} already exists; not overwriting it") from None
     except WriteError as e:
         raise LogError(str(e)) from e
-    sys.stdout.write(f"wrote {output} (URDF: {urdf}); in Foxglove: Layouts > Import from file\n")
+    sys.stdout.write(f"wrote {output}; in Foxglove desktop: Layouts > Import from file\n")
+
+
+def view(args: argparse.Namespace) -> None:
+    """Serve the log, its robot and layout; print the URLs; serve until Ctrl-C."""
+    from amex.log.serve import LogServer
+
+    data = read_log(args.file)
+    if not 0 <= args.port <= 65535:
+        raise LogError(f"invalid --port {args.port}; valid: 0-65535 (0: any free port)")
+    try:
+        server = LogServer(data, host=args.host, port=args.port, studio_dir=args.studio)
+    except OSError as e:
+        raise LogError(
+            f"cannot listen on {args.host}:{args.port} ({e.strerror}); try --port 0"
+        ) from e
+    urls = server.urls
+    out = sys.stdout
+    out.write(f"serving {data.path} ({data.size / 1e3:.0f} kB) on http://{args.host}:"
+              f"{server.port}/ (Ctrl-C stops)\n")  # fmt: skip
+    out.write(f"  Foxglove web app:  {urls.foxglove}\n")
+    out.write(f"  its layout:        {urls.layout}  (save it, then Layouts > Import from file)\n")
+    if urls.studio:
+        out.write(f"  local Studio 1.48: {urls.studio}\n")
+    if urls.urdf:
+        out.write(f"  robot:             {urls.urdf}\n")
+    out.flush()
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
+
+
+def video(args: argparse.Namespace) -> None:
+    """Render the episode(s) into an MP4 film."""
+    from amex.log.video import render_video
+
+    try:
+        width, height = (int(v) for v in args.size.lower().split("x"))
+    except ValueError:
+        raise LogError(f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, e.g. 640x480") from None
+    output = _output(args.output or args.files[0].with_suffix(".mp4"), [".mp4"], "an MP4 file")
+    info = render_video(
+        args.files, output, fps=args.fps, width=width, height=height, speed=args.speed
+    )
+    if info.different_environments:
+        sys.stderr.write(f"{PROG}: note: the logs are of different environments\n")
+    sys.stdout.write(
+        f"wrote {info.path} ({info.path.stat().st_size / 1e3:.0f} kB, {info.frames} frames, "
+        f"{info.seconds:.1f} s, {info.width}x{info.height})\n"
+    )
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
@@ -24,6 +25,7 @@ from foxglove.messages import (
 )
 
 from amex.log.frames import IDENTITY, WORLD_FRAME, vec
+from amex.metrics import EpisodeResult
 
 NUM = "%.9g"  # JSON number format of the per-step channels (9 significant digits)
 GOAL_COLOR = Color(r=0.1, g=0.75, b=0.2, a=0.35)
@@ -52,17 +54,88 @@ def number_schema(title: str, fields: dict[str, int | str]) -> dict[str, Any]:
         elif n == 0:
             props[key] = {"type": "number"}
         else:
-            props[key] = {
-                "type": "array",
-                "items": {"type": "number"},
-                "minItems": n,
-                "maxItems": n,
-            }
+            props[key] = number_array(n)
     return {"title": title, "type": "object", "properties": props}
 
 
-def json_schemas(n: int) -> dict[str, dict[str, Any]]:
-    """The JSON channels and their schemas (``n`` joints)."""
+def number_array(n: int | None = None) -> dict[str, Any]:
+    """Schema of an array of numbers (of length ``n`` if given)."""
+    schema: dict[str, Any] = {"type": "array", "items": {"type": "number"}}
+    if n is not None:
+        schema.update(minItems=n, maxItems=n)
+    return schema
+
+
+def value_schema(value: Any) -> dict[str, Any] | None:
+    """The schema of one JSON value as viewers accept it; None for null or nested lists."""
+    if isinstance(value, bool):
+        return {"type": "boolean"}
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        return {"type": "number"}
+    if isinstance(value, str):
+        return {"type": "string"}
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (list, tuple)):
+        if all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            return number_array()
+        return None
+    return None
+
+
+def object_schema(title: str, values: dict[str, Any]) -> dict[str, Any]:
+    """Schema of a JSON object like ``values`` (keys whose values fit no schema are left out)."""
+    props = {k: sch for k, v in values.items() if (sch := value_schema(v)) is not None}
+    return {"title": title, "type": "object", "properties": props}
+
+
+def episode_schema() -> dict[str, Any]:
+    """``/episode``: the time, ``status`` and every column of an ``EpisodeResult``."""
+    types = {"int": "number", "float": "number", "bool": "boolean", "str": "string"}
+    props: dict[str, Any] = {"t": {"type": "number"}, "status": {"type": "string"}}
+    for f in fields(EpisodeResult):
+        props[f.name] = {"type": types[f.type if isinstance(f.type, str) else f.type.__name__]}
+    return {"title": "amex.EpisodeResult", "type": "object", "properties": props}
+
+
+def reference_schema(m: int) -> dict[str, Any]:
+    """``/reference``: the plan as an array of samples (time, TCP position, the rest of y)."""
+    sample = {
+        "type": "object",
+        "properties": {
+            "t": {"type": "number"},
+            "position": number_array(3),
+            "axis": number_array(m - 3),
+        },
+    }
+    return {
+        "title": "amex.ReferencePlan",
+        "type": "object",
+        "properties": {
+            "dt": {"type": "number"},
+            "duration": {"type": "number"},
+            "samples": {"type": "array", "items": sample},
+        },
+    }
+
+
+def reference_json(y: np.ndarray, dt: float, duration: float) -> bytes:
+    """The ``/reference`` message of a plan ``y`` (N + 1, m) sampled every ``dt`` [s]."""
+    samples = []
+    for k, row in enumerate(np.asarray(y, dtype=float).tolist()):
+        position = ",".join(NUM % v for v in row[:3])
+        axis = ",".join(NUM % v for v in row[3:])
+        samples.append(f'{{"t":{NUM % (k * dt)},"position":[{position}],"axis":[{axis}]}}')
+    text = f'{{"dt":{float(dt)!r},"duration":{float(duration)!r},"samples":[{",".join(samples)}]}}'
+    return text.encode()
+
+
+def json_schemas(n: int, m: int = 6) -> dict[str, dict[str, Any]]:
+    """The JSON channels and their schemas (``n`` joints, task space of ``m``), but ``/method``.
+
+    ``/method`` carries whatever the method's ``internals()`` gives; its schema is made from the
+    first step's values (:func:`object_schema`).
+    """
     return {
         "/tcp": number_schema(
             "amex.Tcp",
@@ -70,16 +143,63 @@ def json_schemas(n: int) -> dict[str, dict[str, Any]]:
         ),
         "/goal": number_schema("amex.Goal", {"t": 0, "position": 3, "distance": 0}),
         "/command": number_schema(
-            "amex.Command", {"t": 0, "y_star": 6, "yd_star": 6, "q_star": n, "qd_star": n}
+            "amex.Command", {"t": 0, "y_star": m, "yd_star": m, "q_star": n, "qd_star": n}
         ),
-        "/method": {
-            "title": "amex.MethodInternals",
-            "type": "object",
-            "properties": {"t": {"type": "number"}},
-        },
-        "/reference": number_schema("amex.ReferencePlan", {"dt": 0, "duration": 0, "y": "array"}),
-        "/episode": number_schema("amex.EpisodeResult", {"t": 0, "status": "string"}),
+        "/reference": reference_schema(m),
+        "/episode": episode_schema(),
     }
+
+
+def viewer_schema_problems(schema: Any, where: str = "schema") -> list[str]:
+    """What Foxglove (1.48 and Lichtblick) would reject in a JSON channel's schema; [] if none.
+
+    Their rule (``parseJsonSchema`` of ``@foxglove/mcap-support``): the root and every nested
+    object has ``"type": "object"`` and ``properties``; each property is a boolean, a string
+    (optionally base64), a number or integer, an object (same rule), or an array whose ``items``
+    is one of those scalars or an object (no arrays of arrays, no ``null``, no type lists); a
+    ``oneOf`` is allowed only of numeric ``const`` alternatives.
+    """
+    if not isinstance(schema, dict) or schema.get("type") != "object":
+        return [f'{where}: "type" must be "object"']
+    props = schema.get("properties")
+    if not isinstance(props, dict):
+        return [f'{where}: an object needs "properties"']
+    problems: list[str] = []
+    for name, prop in props.items():
+        path = f"{where}.{name}"
+        if not isinstance(prop, dict):
+            problems.append(f"{path}: not a schema")
+            continue
+        if "oneOf" in prop:
+            alternatives = prop["oneOf"]
+            if not (isinstance(alternatives, list) and all(
+                    isinstance(a, dict) and isinstance(a.get("const"), (int, float))
+                    for a in alternatives)):  # fmt: skip
+                problems.append(f"{path}: oneOf alternatives must have number values")
+            continue
+        kind = prop.get("type")
+        if kind in ("boolean", "number", "integer"):
+            continue
+        if kind == "string":
+            if prop.get("contentEncoding") not in (None, "base64"):
+                problems.append(f"{path}: unsupported contentEncoding")
+        elif kind == "object":
+            problems += viewer_schema_problems(prop, path)
+        elif kind == "array":
+            items = prop.get("items")
+            if not isinstance(items, dict):
+                problems.append(f'{path}: an array needs scalar or object "items"')
+                continue
+            item_kind = items.get("type")
+            if item_kind == "object":
+                problems += viewer_schema_problems(items, path + "[]")
+            elif item_kind not in ("boolean", "string", "number", "integer"):
+                problems.append(f'{path}: an array needs scalar or object "items"')
+            elif item_kind == "string" and items.get("contentEncoding") is not None:
+                problems.append(f"{path}[]: no contentEncoding in array items")
+        else:
+            problems.append(f"{path}: unsupported type {kind!r}")
+    return problems
 
 
 def jsonable(value: Any) -> Any:

@@ -209,8 +209,11 @@ class LogData:
     def reference_path(self) -> np.ndarray:
         """The reference plan's TCP positions (``/reference``), shape (N + 1, 3) [m], or (0, 3)."""
         messages = self.messages.get("/reference", [])
-        if messages and isinstance(messages[0].data, dict) and messages[0].data.get("y"):
-            return np.asarray(messages[0].data["y"], dtype=float)[:, :3]
+        data = messages[0].data if messages else None
+        if isinstance(data, dict) and data.get("samples"):
+            return np.array([s["position"] for s in data["samples"]], dtype=float).reshape(-1, 3)
+        if isinstance(data, dict) and data.get("y"):  # logs before amex 0.1 kept y as a matrix
+            return np.asarray(data["y"], dtype=float)[:, :3]
         return np.zeros((0, 3))
 
     def series(self, topic: str, key: str) -> np.ndarray:

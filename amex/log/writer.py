@@ -20,10 +20,15 @@ topic                schema                    content
 ``/tcp``             JSON                      TCP position, z-axis, velocity, distance to goal
 ``/goal``            JSON                      goal position and distance to it
 ``/command``         JSON                      the command: y*, y_dot* (and q*, q_dot* if any)
-``/method``          JSON                      the method's ``internals()`` (numbers, small lists)
-``/reference``       JSON                      the reference plan ``y`` and ``dt`` (once, t = 0)
+``/method``          JSON                      the method's ``internals()`` (numbers, flags, texts,
+                                               small number arrays; schema from the first step)
+``/reference``       JSON                      the reference plan: ``dt``, ``duration`` and
+                                               ``samples`` [{t, position, axis}] (once, t = 0)
 ``/episode``         JSON                      the episode's result (once, at the end)
 ==================== ========================= ==================================================
+
+Every JSON schema declares all the fields its messages carry, in the form browser viewers accept
+(:func:`amex.log.messages.viewer_schema_problems`: no arrays of arrays, every array has ``items``).
 
 MCAP metadata records: ``episode`` (the caller's metadata: task, method, env, seed, ...),
 ``scenario``, ``robot``, ``log`` (written first) and ``outcome`` (written last: the result, or
@@ -182,8 +187,9 @@ class EpisodeLogger:
         self._scene_reference = SceneUpdateChannel("/scene/reference", context=ctx)
         self._json = {
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
-            for topic, schema in M.json_schemas(robot.nv).items()
+            for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
         }
+        self._method_kinds: dict[str, str] | None = None  # /method's schema, at the first step
         self._command_json: dict[tuple[bool, ...], str] = {}
         self._previous_handler: Any = None
         self._install_sigterm()
@@ -299,6 +305,7 @@ class EpisodeLogger:
             {
                 "name": robot.name,
                 "urdf_path": robot.urdf_path,
+                "package_dirs": list(getattr(robot.description, "package_dirs", ()) or ()),
                 "joint_names": self._joint_names,
                 "q0": robot.q0,
                 "links": [list(link) for link in self._links.links],
@@ -313,10 +320,7 @@ class EpisodeLogger:
                 "world_frame": WORLD_FRAME,
             },
         )
-        y = np.asarray(plan.y, dtype=float)
-        rows = ",".join("[" + ",".join(M.NUM % v for v in row) + "]" for row in y.tolist())
-        text = f'{{"dt":{float(plan.dt)!r},"duration":{float(plan.duration)!r},"y":[{rows}]}}'
-        self._json["/reference"].base.log(text.encode(), 0)
+        self._json["/reference"].base.log(M.reference_json(plan.y, plan.dt, plan.duration), 0)
         self._publish_world(0.0, scenario.goal_at(0.0), scenario.obstacles_at(0.0))
         self._publish_reference(0.0)
 
@@ -395,14 +399,7 @@ class EpisodeLogger:
 
         internals = dict(step.internals)
         plan = internals.pop("plan", None)
-        method: dict[str, Any] = {"t": t}
-        for key, value in internals.items():
-            if isinstance(value, np.ndarray):
-                if value.size > 64:
-                    continue  # large arrays do not belong in a per-step JSON message
-                value = value.tolist()
-            method[key] = value
-        self._json["/method"].base.log(M.dumps(method), ns)
+        self._log_method(t, internals, ns)
 
         self._publish_world(t, goal, obs.obstacles)
         self._last_tcp = (tcp[0], tcp[1], tcp[2])
@@ -418,6 +415,34 @@ class EpisodeLogger:
             self._publish_reference(t)
         self._steps += 1
         self._t = t
+
+    def _log_method(self, t: float, internals: dict[str, Any], ns: int) -> None:
+        """``/method``: the numbers, flags, texts and small number arrays of ``internals()``.
+
+        The channel and its schema are made at the first step from the values then; later a
+        key the schema lacks is left out, and a value of another kind is written as null.
+        """
+        method: dict[str, Any] = {"t": t}
+        for key, value in internals.items():
+            if isinstance(value, np.ndarray):
+                if value.size > 64 or value.ndim != 1:
+                    continue  # large arrays do not belong in a per-step JSON message
+                value = value.tolist()
+            method[key] = value
+        if self._method_kinds is None:
+            schema = M.object_schema("amex.MethodInternals", method)
+            self._method_kinds = {k: v["type"] for k, v in schema["properties"].items()}
+            channel = foxglove.Channel("/method", schema=schema, context=self._context)
+            self._json["/method"] = channel
+        kinds = self._method_kinds
+        message = {}
+        for key, value in method.items():
+            kind = kinds.get(key)
+            if kind is None:
+                continue
+            expected = M.value_schema(value)
+            message[key] = value if expected is not None and expected["type"] == kind else None
+        self._json["/method"].base.log(M.dumps(message), ns)
 
     def _log_command(self, t: float, command: Any, ns: int) -> None:
         """y*, y_dot* (and q*, q_dot*): whichever parts the command has."""

@@ -1,0 +1,177 @@
+"""Fig. 5 of several benchmarks side by side: the paper, the authors' setup, ours, ablation steps.
+
+``python -m analysis.compare [LABEL=DIR ...] [--out DIR]`` (``make table`` runs it with
+``original=runs/paper_original ours=runs/paper`` when both exist; ``make ablation-table`` with the
+ablation's steps). Each ``DIR`` is one benchmark configuration (``make table`` splits mixed
+directories). It writes ``compare.md``:
+
+* the numbers: per task and method the success (at 0.03 m and at the paper's counted 0.05 m),
+  the final time, the sum of squared accelerations as the paper computed it
+  (``sum_sq_acc_paper``) and exact (``sum_sq_acc``), for the paper and every benchmark;
+* the paper's claims checked on each: on the paper's own numbers, and on every benchmark as the
+  paper computed its figures (success at 0.05 m, ``sum_sq_acc_paper``) and exactly (success at
+  0.03 m, ``sum_sq_acc``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import pandas as pd
+
+from amex.argparsing import OneLineParser
+from amex.store import StoreError
+from analysis.comparisons import claims
+from analysis.table import HERE, TableError, aggregate, benchmarks, load_runs, paper_table
+
+DEFAULTS = (("original", Path("runs/paper_original")), ("ours", Path("runs/paper")))
+PAPER_METHODS = ("amex", "dmp", "cr")
+
+
+def paper_aggregate() -> pd.DataFrame:
+    """The paper's Fig. 5 in the columns of :func:`analysis.table.aggregate` (150 each)."""
+    p = paper_table()
+    return pd.DataFrame(
+        {
+            "task": p.task,
+            "method": p.method,
+            "episodes": 150,
+            "success": p.success,
+            "final_time_mean": p.final_time_mean,
+            "final_time_2std": p.final_time_2std,
+            "sum_sq_acc_mean": p.sum_sq_acc_mean,
+            "sum_sq_acc_paper_mean": p.sum_sq_acc_mean,
+            "sum_sq_acc_t3_median": math.nan,
+            "compute_time_mean": p.compute_time_mean,
+        }
+    )
+
+
+def load(directory: Path) -> pd.DataFrame:
+    """The aggregates of the one benchmark configuration under ``directory``."""
+    groups = benchmarks(load_runs(directory))
+    if len(groups) != 1:
+        raise TableError(
+            f"{directory} holds {len(groups)} benchmark configurations; give one sweep's directory"
+        )
+    return aggregate(groups[0].episodes)
+
+
+def _cell(df: pd.DataFrame, task: int, method: str, col: str, fmt: str) -> str:
+    row = df[(df.task == task) & (df.method == method)]
+    if not len(row) or col not in row or math.isnan(float(row[col].iloc[0])):
+        return ""
+    return f"{float(row[col].iloc[0]):{fmt}}"
+
+
+def numbers(frames: dict[str, pd.DataFrame]) -> str:
+    """The side-by-side table as Markdown."""
+    labels = list(frames)
+    measures = (
+        ("success", "success", ".2f"),
+        ("success 0.05 m", "success_005", ".2f"),
+        ("final time [s]", "final_time_mean", ".2f"),
+        ("2 std [s]", "final_time_2std", ".2f"),
+        ("sum sq. acc. (paper's computation)", "sum_sq_acc_paper_mean", ".3g"),
+        ("sum sq. acc. (exact)", "sum_sq_acc_mean", ".3g"),
+    )
+    head = ["task", "method"] + [f"{name}: {label}" for name, _, _ in measures for label in labels]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for task in (1, 2, 3, 4):
+        for method in PAPER_METHODS:
+            cells = [str(task), method]
+            for _, col, fmt in measures:
+                for label in labels:
+                    df = frames[label]
+                    if label == "paper" and col in ("success_005", "sum_sq_acc_mean"):
+                        # the paper counted success at 0.05 m and had only its own computation
+                        col_here = "success" if col == "success_005" else ""
+                        cells.append(_cell(df, task, method, col_here, fmt) if col_here else "")
+                    else:
+                        cells.append(_cell(df, task, method, col, fmt))
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def verdicts(frames: dict[str, pd.DataFrame]) -> str:
+    """The paper's claims on every benchmark (and both smoothness computations) as Markdown."""
+    columns: dict[str, list[tuple[str, str, str]]] = {}
+    for label, df in frames.items():
+        if label == "paper":
+            columns["paper"] = claims(df, "sum_sq_acc_paper_mean")
+            continue
+        columns[f"{label} (as the paper computed)"] = claims(
+            df, "sum_sq_acc_paper_mean", success="success_005"
+        )
+        columns[f"{label} (exact)"] = claims(df, "sum_sq_acc_mean")
+    suffixes = (", as the paper computed it", " (as the paper computed it)")
+    names = [c[0] for c in columns["paper"]]
+    for suffix in suffixes:
+        names = [n.replace(suffix, "") for n in names]
+    head = ["claim", *columns]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for i, name in enumerate(names):
+        if "equal duration" in name:  # our diagnostic, not one of the paper's claims
+            continue
+        cells = [name] + [col[i][1].split(";")[0] for col in columns.values()]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def report(frames: dict[str, pd.DataFrame], sources: dict[str, Path]) -> str:
+    """The whole ``compare.md``."""
+    listed = ", ".join(f"{label} = `{path}`" for label, path in sources.items())
+    return "\n".join(
+        [
+            "# Fig. 5 side by side\n",
+            f"The paper (Englert & Toussaint 2014, Fig. 5) and {listed}. Means over the "
+            "environments; the paper counted success at 0.05 m (its text says 0.03 m) and "
+            "computed the sum of squared accelerations from joint angles rounded to 6 digits "
+            "(`sum_sq_acc_paper`).\n",
+            numbers(frames),
+            "\n## The paper's claims on each\n",
+            verdicts(frames),
+            "",
+        ]
+    )
+
+
+def _pair(text: str) -> tuple[str, Path]:
+    label, sep, path = text.partition("=")
+    if not sep or not label or not path:
+        raise ValueError(text)
+    return label, Path(path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command line (module notes)."""
+    parser = OneLineParser(prog="analysis.compare", description=__doc__.splitlines()[0])
+    parser.add_argument("benchmarks", nargs="*", metavar="LABEL=DIR")
+    parser.add_argument("--out", default=HERE / "out", type=Path)
+    parser.add_argument("--name", default="compare.md", help="output file name")
+    args = parser.parse_args(argv)
+    try:
+        pairs = [_pair(b) for b in args.benchmarks] if args.benchmarks else list(DEFAULTS)
+    except ValueError as e:
+        parser.error(f"invalid benchmark {e}: valid: LABEL=DIR, e.g. original=runs/paper_original")
+    sources = dict(pairs)
+    try:
+        frames = {"paper": paper_aggregate(), **{k: load(v) for k, v in sources.items()}}
+    except (TableError, StoreError) as e:
+        print(f"analysis.compare: error: {e}", file=sys.stderr)
+        return 2
+    text = report(frames, sources)
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / args.name
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+    print(text)
+    print(f"wrote {path}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
