@@ -73,10 +73,13 @@ ablation-table: $(STAMP)
 figures: $(STAMP)
 	$(BIN)/python -m analysis.figures --runs $(RUNS)
 
-## Beyond the paper: robustness (goal speed, noise, prediction) and pr2_like studies (~1.5 h).
+## Beyond the paper: the robustness (goal speed, noise, prediction) and pr2_like studies, each a
+## sweep on the launcher (conf/study/*.yaml; make studies again resumes), then their reports.
 studies: $(STAMP)
-	$(BIN)/python -m analysis.robustness --episodes 50
-	$(BIN)/python -m analysis.pr2 --episodes 30
+	$(BIN)/amex-run -m study=robustness
+	$(BIN)/amex-run -m study=pr2_like
+	$(BIN)/python -m analysis.robustness runs/robustness
+	$(BIN)/python -m analysis.pr2 runs/pr2_like
 
 ## The whole comparison: 4 tasks x 3 methods x 150 environments, then the table.
 ## EXPERIMENT=original runs the authors' setup (conf/experiment/original.yaml) into runs/paper_original.

@@ -4,27 +4,27 @@
 noise, 50 ms latency) and an arm that "does not accelerate as desired" (links 20 % heavier than
 the controller's model, 0.3 N m Coulomb friction, 0.5 N m s/rad viscous damping). Three parts:
 
-1. ``table``: every method on Tasks 1-4, each run composed exactly as ``amex-run
-   experiment=pr2_like task=T method=M`` and run in-process into
-   ``runs/pr2_like/task<T>_<M>_seed0/`` (the directory names of an ``amex-run -m`` sweep with
-   ``hydra.sweep.dir=runs/pr2_like``, so either fills and resumes the other), then the Fig. 5
-   table of :mod:`analysis.table`; the same again with each disturbance compensation of the
-   inner controller (:data:`COMPENSATIONS`, ``controller.disturbance=observer|integral``) into
-   ``runs/pr2_like_<name>/``, tabulated side by side and paired against the paper's controller;
-   plus AMEX with a stiffer velocity loop (``method.pos.kd`` and
-   ``method.dir.kd`` 400, see below) into ``runs/pr2_like_variants/amex_kd400/``, reported apart
-   and paired against AMEX with the original gains and against DMP.
+1. ``table``: every method on Tasks 1-4 (``amex-run experiment=pr2_like task=T method=M``), the
+   Fig. 5 table of :mod:`analysis.table`; the same with each disturbance compensation of the
+   inner controller (:data:`COMPENSATIONS`, ``controller.disturbance=observer|integral``),
+   tabulated side by side and paired against the paper's controller; plus AMEX with a stiffer
+   velocity loop (``method.pos.kd`` and ``method.dir.kd`` 400, see below), reported apart and
+   paired against AMEX with the original gains and against DMP.
 2. ``stall``: why AMEX stalls under ``pr2_like`` with the original inner gains (Kp 1, Kd 100): on
-   Task 2, AMEX with other gains and with one mismatch term at a time, into
-   ``runs/pr2_like_stall/<variant>/``.
+   Task 2, AMEX with other gains and with one mismatch term at a time.
 3. ``fig6``: the paper's Fig. 6 analogue from one Task-2 AMEX episode: the reference TCP path,
    the executed paths (the paper's inner controller, and the same with the disturbance
    observer), the perceived goals as dots, and below the phase and the commanded versus actual
-   TCP speed over time.
+   TCP speed over time, read from the episodes' logs (``log=full``).
+
+All of these are the runs of one sweep, ``amex-run -m study=pr2_like``
+(``conf/study/pr2_like.yaml``, into ``runs/pr2_like/``, on any launcher, resumable, shardable);
+this module only reads them (:mod:`analysis.study`: a cell's rows are those of its configuration
+hash) and refuses a missing or incomplete cell in one line.
 
 Outputs: ``analysis/out/pr2_like.md`` and ``analysis/out/fig6_pr2_like.png``.
 
-Usage: ``python -m analysis.pr2 [--episodes 30] [--stall-episodes 30] [--runs DIR] [--out DIR]``.
+Usage: ``python -m analysis.pr2 [RUNS] [--out DIR]`` (RUNS: runs/pr2_like).
 """
 
 from __future__ import annotations
@@ -93,16 +93,16 @@ FIG6_ENV = 0  # the Task-2 environment drawn
 
 @dataclass(frozen=True)
 class PR2Study:
-    """What to run.
+    """The report's cells (the defaults: the whole study, ``conf/study/pr2_like.yaml``).
 
     Attributes:
-        episodes: environments per (task, method) run.
-        stall_episodes: environments per stall variant (0: skip the stall analysis).
+        episodes: environments per run (the sweep's, once read).
+        stall_episodes: 0 skips the stall analysis (else it has the sweep's ``episodes``).
         tasks: tasks of the table.
         methods: methods of the table.
         compensations: inner-loop compensations of the table (keys of :data:`COMPENSATIONS`).
         stall: stall variants (label -> overrides).
-        overrides: extra overrides for every run (e.g. ``max_time=0.5`` in tests).
+        overrides: config overrides of every cell beyond those its sweep recorded.
     """
 
     episodes: int = 30
@@ -112,6 +112,18 @@ class PR2Study:
     compensations: tuple[str, ...] = tuple(COMPENSATIONS)
     stall: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(STALL))
     overrides: tuple[str, ...] = ()
+
+
+#: The keys the cells set (the sweep's own values of them are not shared by every cell).
+CELL_KEYS = tuple(
+    {
+        "task",
+        "method",
+        "controller.disturbance",
+        *(o.split("=", 1)[0] for v in STALL.values() for o in v),
+    }
+)
+FIG6 = {"paper's controller": (), "disturbance observer": OBSERVER}  # label -> compensation
 
 
 def pr2_config(task: int, method: str, episodes: int, overrides: Sequence[str] = ()):
@@ -129,70 +141,53 @@ def pr2_config(task: int, method: str, episodes: int, overrides: Sequence[str] =
     )
 
 
-def _run(config, run_dir: Path, label: str) -> None:
-    from amex.runner import run
+def _cell(
+    episodes: pd.DataFrame, runs: Path, base: Sequence[str], name: str, cell: Sequence[str]
+) -> pd.DataFrame:
+    from analysis.study import cell_config, cell_rows
 
-    summary = run(config, run_dir)
-    print(
-        f"{label}: success {summary['success']['mean']:.2f}, final time "
-        f"{summary['final_time']['mean']:.2f} s ({run_dir})",
-        file=sys.stderr,
-        flush=True,
-    )
+    return cell_rows(episodes, cell_config(base, cell), name, runs)
 
 
-def _episodes(run_dir: Path, n: int) -> pd.DataFrame:
-    df = load_runs(run_dir)
-    return df[df.env < n].copy()
-
-
-def compensation_dir(runs: Path, name: str) -> Path:
-    """Where the runs with compensation ``name`` live (``none``: ``runs/pr2_like``)."""
-    return runs / (EXPERIMENT if name == "none" else f"{EXPERIMENT}_{name}")
-
-
-def run_table(study: PR2Study, runs: Path) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]]:
-    """Run the methods (under every compensation) and the AMEX variants on every task.
+def read_table(
+    study: PR2Study, runs: Path, episodes: pd.DataFrame
+) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]]:
+    """The methods' runs (under every compensation) and the AMEX variants' on every task.
 
     Returns:
         the methods' episodes with a ``compensation`` column, and each AMEX variant's episodes.
     """
+    base = study.overrides
     frames = []
     for name in study.compensations:
-        root = compensation_dir(runs, name)
-        extra = (*study.overrides, *COMPENSATIONS[name])
         for task in study.tasks:
             for method in study.methods:
-                config = pr2_config(task, method, study.episodes, extra)
-                label = f"task {task} {method}" + ("" if name == "none" else f" {name}")
-                _run(config, root / f"task{task}_{method}_seed{SEED}", label)
-        df = load_runs(root)
-        keep = df.task.isin(study.tasks) & df.method.isin(study.methods)
-        frames.append(df[keep & (df.env < study.episodes)].assign(compensation=name))
+                cell = (f"task={task}", f"method={method}", *COMPENSATIONS[name])
+                label = f"task {task} {method} ({name})"
+                df = _cell(episodes, runs, base, label, cell)
+                frames.append(df.assign(compensation=name))
     variants: dict[str, pd.DataFrame] = {}
     if "amex" in study.methods:
         for name, extra in AMEX_VARIANTS.items():
             vframes = []
             for task in study.tasks:
-                config = pr2_config(task, "amex", study.episodes, (*study.overrides, *extra))
-                run_dir = runs / f"{EXPERIMENT}_variants" / name / f"task{task}_amex_seed{SEED}"
-                _run(config, run_dir, f"task {task} {name}")
-                vframes.append(_episodes(run_dir, study.episodes))
+                cell = (f"task={task}", "method=amex", *extra)
+                vframes.append(_cell(episodes, runs, base, f"task {task} {name}", cell))
             variants[name] = pd.concat(vframes, ignore_index=True)
     return pd.concat(frames, ignore_index=True), variants
 
 
-def run_stall(study: PR2Study, runs: Path) -> pd.DataFrame:
+def read_stall(study: PR2Study, runs: Path, episodes: pd.DataFrame) -> pd.DataFrame:
     """The stall analysis: AMEX on Task 2 under each variant; one row per variant."""
     records = []
-    base = None
-    for i, (label, extra) in enumerate(study.stall.items()):
-        config = pr2_config(2, "amex", study.stall_episodes, (*study.overrides, *extra))
-        run_dir = runs / f"{EXPERIMENT}_stall" / f"v{i:02d}"
-        _run(config, run_dir, f"stall {label}")
-        g = _episodes(run_dir, study.stall_episodes)
-        base = g if base is None else base
-        ft = paired_stats(g, base, ("final_time",)).iloc[0]
+    first = None
+    max_time = pr2_config(2, "amex", 1, study.overrides).max_time
+    for label, extra in study.stall.items():
+        g = _cell(
+            episodes, runs, study.overrides, f"stall {label}", ("task=2", "method=amex", *extra)
+        )
+        first = g if first is None else first
+        ft = paired_stats(g, first, ("final_time",)).iloc[0]
         records.append(
             {
                 "variant": label,
@@ -200,14 +195,14 @@ def run_stall(study: PR2Study, runs: Path) -> pd.DataFrame:
                 "n": len(g),
                 "success": g.success.mean(),
                 "success_005": g.success_005.mean(),
-                "timeouts": (g.final_time >= config.max_time - 1e-9).mean(),
+                "timeouts": (g.final_time >= max_time - 1e-9).mean(),
                 "final_time_mean": g.final_time.mean(),
                 "final_distance_mean_cm": 100 * g.final_distance.mean(),
                 "final_distance_max_cm": 100 * g.final_distance.max(),
                 "sum_sq_acc_mean": g.sum_sq_acc.mean(),
                 "final_time_diff_vs_original": ft.mean_diff,
                 "diff_ci": f"[{ft.ci_low:.2f}, {ft.ci_high:.2f}]",
-                "run_dir": str(run_dir),
+                "run_dir": str(Path(g.file.iloc[0]).parent),
             }
         )
     return pd.DataFrame.from_records(records)
@@ -257,45 +252,6 @@ def disturbance(overrides: Sequence[str] = ()) -> Disturbance:
     return Disturbance(gravity, friction, {kd: gravity / kd for kd in OFFSET_KD})
 
 
-class PathRecorder:
-    """An :class:`amex.episode.Recorder` keeping what Fig. 6 draws, at the outer rate."""
-
-    def __init__(self) -> None:
-        self.rows: list[tuple[float, ...]] = []
-        self.result = None
-
-    def record(self, step) -> None:
-        """Keep time, TCP position, perceived goal, phase, commanded and actual TCP speed."""
-        yd = step.command.yd
-        speed_cmd = float(np.linalg.norm(yd[:3])) if yd is not None else np.nan
-        self.rows.append(
-            (
-                step.t,
-                *step.state.y[:3],
-                *step.observation.goal[:3],
-                float(step.internals.get("s", np.nan)),
-                speed_cmd,
-                float(np.linalg.norm(step.state.yd[:3])),
-            )
-        )
-
-    def finish(self, result) -> None:
-        """Keep the episode's result."""
-        self.result = result
-
-    def arrays(self) -> dict[str, np.ndarray]:
-        """The recorded series: t (n,), tcp (n, 3), seen (n, 3), s, speed_cmd, speed (n,)."""
-        a = np.asarray(self.rows, dtype=float)
-        return {
-            "t": a[:, 0],
-            "tcp": a[:, 1:4],
-            "seen": a[:, 4:7],
-            "s": a[:, 7],
-            "speed_cmd": a[:, 8],
-            "speed": a[:, 9],
-        }
-
-
 @dataclass(frozen=True)
 class Trace:
     """One recorded episode for Fig. 6."""
@@ -307,39 +263,62 @@ class Trace:
     result: object
 
 
-def record_episode(
-    env: int = FIG6_ENV, overrides: Sequence[str] = (), label: str = "AMEX"
-) -> Trace:
-    """Record Task-2 environment ``env`` with AMEX under ``pr2_like`` plus ``overrides``."""
-    from amex.episode import run_episode
-    from amex.methods import get_method
+def logged_trace(runs: Path, overrides: Sequence[str], label: str) -> Trace:
+    """Task-2 environment :data:`FIG6_ENV` of AMEX under ``pr2_like`` plus ``overrides``, from
+    its log: the study's one-episode run with ``log=full`` (``conf/study/pr2_like.yaml``).
+
+    Raises:
+        StudyError: the run or its log is missing.
+    """
+    from amex.control.state import RobotState
+    from amex.log.reader import LogError, read_log
     from amex.runner import prepare
     from amex.scenario import make_scenario
+    from amex.store import config_hash, read_rows
+    from analysis.study import StudyError, cell_config
 
-    config = pr2_config(2, "amex", 1, overrides)
-    context = prepare(config)
-    method = get_method("amex").from_plan(
-        context.plan, config.method, 1.0 / config.outer_hz, context.robot
+    config = cell_config(
+        [*overrides], ("task=2", "method=amex", f"episodes={FIG6_ENV + 1}", "log=full")
     )
+    wanted = config_hash(config)
+    for path in sorted(runs.rglob(f"logs/episode_{FIG6_ENV:03d}.mcap")):
+        rows = read_rows(path.parent.parent / "episodes.csv")
+        row = next((r for r in rows if int(r["env"]) == FIG6_ENV), None)
+        if row is not None and row["config_hash"] == wanted:
+            break
+    else:
+        raise StudyError(
+            f"{runs}: no log of Fig. 6's episode ({label}); run the study's sweep (the same "
+            "command resumes)"
+        )
+    try:
+        log = read_log(path)
+    except LogError as e:
+        raise StudyError(str(e)) from e
+    dt = 1.0 / config.inner_hz  # the episode's times, k dt, from the log's nanoseconds
+    t = np.array([round(m.log_time * 1e-9 / dt) * dt for m in log.messages["/tcp"]])
+    context = prepare(config)  # the robot and the reference plan (cached), not an episode
+    # the TCP's position and speed from the joint states (doubles), as the episode computed them
+    data = context.robot.model.createData()
+    states = [
+        RobotState(context.robot, data, q, v)
+        for q, v in zip(log.joints("position"), log.joints("velocity"), strict=True)
+    ]
+    series = {
+        "t": t,
+        "tcp": np.array([state.y[:3] for state in states]),
+        "seen": log.series("/goal", "position"),
+        "s": log.series("/method", "s"),
+        "speed_cmd": np.linalg.norm(log.series("/command", "yd_star")[:, :3], axis=1),
+        "speed": np.array([float(np.linalg.norm(state.yd[:3])) for state in states]),
+    }
     scenario = make_scenario(
-        config.scenario, 2, config.seed, env, context.plan.y[0, :3], context.plan.duration
+        config.scenario, 2, config.seed, FIG6_ENV, context.plan.y[0, :3], context.plan.duration
     )
-    recorder = PathRecorder()
-    run_episode(
-        context.robot,
-        method,
-        scenario,
-        config.gains(),
-        config.loop,
-        recorder,
-        perception=config.perception,
-        prediction=config.prediction,
-        mismatch=config.mismatch,
-        disturbance=config.controller.compensation(),
-    )
-    series = recorder.arrays()
-    goal = np.array([scenario.goal_at(t) for t in series["t"]])
-    return Trace(label, series, goal, context.plan.y[:, :3].copy(), recorder.result)
+    goal = np.array([scenario.goal_at(time) for time in t])
+    from amex.store import parse_result
+
+    return Trace(label, series, goal, context.plan.y[:, :3].copy(), parse_result(row))
 
 
 def plot_fig6(traces: Sequence[Trace], path: Path) -> Path:
@@ -616,33 +595,49 @@ def render(
     return "\n".join(parts) + "\n"
 
 
+def load_study(study: PR2Study, runs: Path) -> PR2Study:
+    """``study`` with the sweep's overrides (``runs/multirun.yaml``) and ``episodes``."""
+    import dataclasses
+
+    from analysis.study import StudyError, cell_config, sweep_overrides
+
+    if not runs.is_dir():
+        raise StudyError(f"{runs}: no such directory; run `amex-run -m study=pr2_like`")
+    base = (*sweep_overrides(runs, EXPERIMENT, CELL_KEYS), *study.overrides)
+    episodes = cell_config(base, ("task=1", "method=amex")).episodes
+    return dataclasses.replace(study, overrides=base, episodes=episodes)
+
+
 def write_outputs(study: PR2Study, runs: Path, out_dir: Path) -> list[Path]:
-    """Run everything (resuming) and write ``pr2_like.md`` and ``fig6_pr2_like.png``."""
-    df, variants = run_table(study, runs)
-    stall = run_stall(study, runs) if study.stall_episodes > 0 else pd.DataFrame()
+    """Read the study's runs and write ``pr2_like.md`` and ``fig6_pr2_like.png``."""
+    study = load_study(study, runs)
+    episodes = load_runs(runs, skip_logged=True)  # Fig. 6's logged runs repeat a table row
+    df, variants = read_table(study, runs, episodes)
+    stall = read_stall(study, runs, episodes) if study.stall_episodes > 0 else pd.DataFrame()
+    traces = [logged_trace(runs, (*study.overrides, *c), label) for label, c in FIG6.items()]
     out_dir.mkdir(parents=True, exist_ok=True)
     md = out_dir / "pr2_like.md"
     tmp = md.with_suffix(".md.tmp")
     tmp.write_text(render(study, df, variants, stall))
     os.replace(tmp, md)
-    traces = [record_episode(overrides=study.overrides, label="paper's controller")]
-    traces.append(
-        record_episode(overrides=(*study.overrides, *OBSERVER), label="disturbance observer")
-    )
     fig = plot_fig6(traces, out_dir / "fig6_pr2_like.png")
     return [md, fig]
 
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
+    from amex.errors import AmexError
+
     parser = OneLineParser(prog="python -m analysis.pr2", description=__doc__)
-    parser.add_argument("--episodes", type=int, default=30, help="environments per task/method")
-    parser.add_argument("--stall-episodes", type=int, default=30, help="0: skip the stall part")
-    parser.add_argument("--runs", type=Path, default=Path("runs"))
+    parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/pr2_like"))
     parser.add_argument("--out", type=Path, default=HERE / "out")
     args = parser.parse_args(argv)
-    study = PR2Study(episodes=args.episodes, stall_episodes=args.stall_episodes)
-    for path in write_outputs(study, args.runs, args.out):
+    try:
+        written = write_outputs(PR2Study(), args.runs, args.out)
+    except AmexError as e:
+        print(f"python -m analysis.pr2: error: {e}", file=sys.stderr)
+        return 2
+    for path in written:
         print(path)
     return 0
 

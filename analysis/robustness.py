@@ -18,13 +18,16 @@ every cell and the same goal in every method: all comparisons are paired. Then:
 * ``tuning``: AMEX with prediction on the same cell for a few ``lead_time`` / ``accel_std``
   values, each paired against AMEX without prediction.
 
-Every cell is a run of :func:`amex.runner.run` into ``runs/robustness/<cell>/`` (resumable: a
-re-run skips recorded environments). A cell's configuration equals ``amex-run task=2 method=M
-scenario.goal_speed_std=.. perception.noise_std=.. perception.latency=0.05
-prediction.enabled=..``. Outputs in ``analysis/out/``: ``robustness.md`` (tables),
-``robustness.csv`` (one row per cell), ``robustness_speed.png`` and ``robustness_noise.png``.
+The cells are the runs of a sweep, ``amex-run -m study=robustness`` (``conf/study/robustness.yaml``:
+48 runs of 50 environments into ``runs/robustness/``, on any launcher, resumable, shardable);
+this module only reads them (:mod:`analysis.study`: a cell's rows are those of its configuration
+hash) and refuses a missing or incomplete cell in one line. A cell's configuration equals
+``amex-run study=robustness method=M scenario.goal_speed_std=.. perception.noise_std=..
+prediction.enabled=..`` plus the sweep's own command-line overrides. Outputs in
+``analysis/out/``: ``robustness.md`` (tables), ``robustness.csv`` (one row per cell),
+``robustness_speed.png`` and ``robustness_noise.png``.
 
-Usage: ``python -m analysis.robustness [--episodes 50] [--quick] [--runs DIR] [--out DIR]``.
+Usage: ``python -m analysis.robustness [RUNS] [--quick] [--out DIR]`` (RUNS: runs/robustness).
 """
 
 from __future__ import annotations
@@ -93,15 +96,15 @@ class Cell:
 
 @dataclass(frozen=True)
 class Study:
-    """What to run. The defaults are the full study; :func:`quick_study` is a smoke version.
+    """The report's cells. The defaults are the full study; :func:`quick_study` a smoke version.
 
     Attributes:
-        episodes: environments per cell.
+        episodes: environments per cell (the sweep's, once read).
         speed_factors: goal speed factors of the speed sweep.
         noise_levels: perception noise levels of the noise sweep [m].
         methods: methods of both sweeps.
         tuning: AMEX prediction variants (lead_time, accel_std) on the fast-goal cell.
-        overrides: extra config overrides for every cell (e.g. ``max_time=1`` in tests).
+        overrides: config overrides of every cell beyond those its sweep recorded.
     """
 
     episodes: int = 50
@@ -137,51 +140,71 @@ def quick_study(overrides: Sequence[str] = ()) -> Study:
     )
 
 
-def cell_config(cell: Cell, episodes: int, overrides: Sequence[str] = ()):
-    """The validated :class:`~amex.config.RunConfig` of a cell (composed like ``amex-run``)."""
-    from amex.cli import load_config
-
-    base = load_config(
-        [f"task={TASK}", f"method={cell.method}", f"episodes={episodes}", *overrides]
-    )
-    speed = round(base.scenario.goal_speed_std * cell.speed_factor, 12)
-    prediction = base.prediction
-    if cell.prediction:
-        prediction = dataclasses.replace(
-            prediction, enabled=True, lead_time=cell.lead_time, accel_std=cell.accel_std
-        )
-    return dataclasses.replace(
-        base,
-        scenario=dataclasses.replace(base.scenario, goal_speed_std=speed),
-        perception=dataclasses.replace(base.perception, noise_std=cell.noise_std, latency=LATENCY),
-        prediction=prediction,
-    )
+#: The keys the cells set (the sweep's own values of them are not shared by every cell).
+CELL_KEYS = (
+    "method",
+    "scenario.goal_speed_std",
+    "perception.noise_std",
+    "prediction.enabled",
+    "prediction.lead_time",
+    "prediction.accel_std",
+)
+BASE_SPEED = 0.1  # [m/s] the configured scenario.goal_speed_std (conf/config.yaml)
 
 
-def run_cells(study: Study, runs_dir: Path) -> pd.DataFrame:
-    """Run every cell (resuming) and return all episodes, one row per (cell, env)."""
-    from amex.runner import run
+def cell_overrides(cell: Cell) -> list[str]:
+    """The overrides that make ``cell`` of the study (as ``conf/study/robustness.yaml`` does)."""
+    speed = round(BASE_SPEED * cell.speed_factor, 12)
+    out = [
+        f"method={cell.method}",
+        f"scenario.goal_speed_std={speed!r}",
+        f"perception.noise_std={cell.noise_std!r}",
+        f"prediction.enabled={'true' if cell.prediction else 'false'}",
+    ]
+    if cell.prediction and (cell.lead_time, cell.accel_std) != (0.0, 0.5):
+        out += [
+            f"prediction.lead_time={cell.lead_time!r}",
+            f"prediction.accel_std={cell.accel_std!r}",
+        ]
+    return out
 
+
+def cell_config(cell: Cell, overrides: Sequence[str] = ("study=robustness",)):
+    """The validated :class:`~amex.config.RunConfig` of a cell (composed like its run)."""
+    from analysis.study import cell_config as compose
+
+    return compose(overrides, cell_overrides(cell))
+
+
+def load_cells(study: Study, runs_dir: Path) -> tuple[Study, pd.DataFrame]:
+    """Every cell's episodes from the sweep in ``runs_dir``, one row per (cell, env).
+
+    ``study.overrides`` are added to those the sweep recorded (``multirun.yaml``). Returns the
+    study with the sweep's ``episodes`` and all these overrides, and the episodes.
+
+    Raises:
+        StudyError: a cell has no runs or is incomplete.
+        TableError: the runs cannot be read, or shards overlap or leave gaps.
+    """
+    from analysis.study import StudyError, cell_rows, sweep_overrides
+
+    if not runs_dir.is_dir():
+        raise StudyError(f"{runs_dir}: no such directory; run `amex-run -m study=robustness`")
+    base = (*sweep_overrides(runs_dir, "robustness", CELL_KEYS), *study.overrides)
+    episodes = load_runs(runs_dir)
     frames = []
-    cells = list(dict.fromkeys(cell for _, cell in study.sweeps()))
-    for i, cell in enumerate(cells, start=1):
-        run_dir = runs_dir / cell.name
-        config = cell_config(cell, study.episodes, study.overrides)
-        summary = run(config, run_dir)
-        print(
-            f"[{i}/{len(cells)}] {cell.name}: success {summary['success']['mean']:.2f}, "
-            f"final time {summary['final_time']['mean']:.2f} s",
-            file=sys.stderr,
-            flush=True,
-        )
-        df = load_runs(run_dir)
-        df = df[df.env < study.episodes].copy()
+    count = study.episodes
+    for cell in dict.fromkeys(cell for _, cell in study.sweeps()):
+        config = cell_config(cell, base)
+        count = config.episodes
+        df = cell_rows(episodes, config, cell.name, runs_dir)
         for key, value in dataclasses.asdict(cell).items():
             df[key] = value
         df["cell"] = cell.name
         df["goal_speed_std"] = config.scenario.goal_speed_std
         frames.append(df)
-    return pd.concat(frames, ignore_index=True)
+    study = dataclasses.replace(study, episodes=count, overrides=tuple(base))
+    return study, pd.concat(frames, ignore_index=True)
 
 
 def _ci(values: np.ndarray) -> tuple[float, float]:
@@ -351,13 +374,15 @@ def verdict(pairs: pd.DataFrame) -> str:
     )
 
 
-def reach_errors(cell: Cell, envs: Sequence[int], overrides: Sequence[str] = ()) -> list[float]:
+def reach_errors(
+    cell: Cell, envs: Sequence[int], overrides: Sequence[str] = ("study=robustness",)
+) -> list[float]:
     """Top-down IK position error [m] of each environment's final goal (0: reachable)."""
     from amex.ik import solve_ik
     from amex.runner import prepare
     from amex.scenario import make_scenario
 
-    config = cell_config(cell, 1, overrides)
+    config = cell_config(cell, overrides)
     context = prepare(config)
     out = []
     for env in envs:
@@ -370,7 +395,9 @@ def reach_errors(cell: Cell, envs: Sequence[int], overrides: Sequence[str] = ())
 
 
 def failures(
-    cells: pd.DataFrame, failed: dict[str, list[int]], overrides: Sequence[str] = ()
+    cells: pd.DataFrame,
+    failed: dict[str, list[int]],
+    overrides: Sequence[str] = ("study=robustness",),
 ) -> str:
     """Which environments fail in the speed sweep (without prediction), per factor and method.
 
@@ -498,8 +525,8 @@ def plot_sweep(cells: pd.DataFrame, sweep: str, path: Path) -> Path:
 
 
 def write_outputs(study: Study, runs_dir: Path, out_dir: Path, quick: bool = False) -> list[Path]:
-    """Run the study (resuming) and write the report, the CSV and the two plots."""
-    episodes = run_cells(study, runs_dir)
+    """Read the study's runs and write the report, the CSV and the two plots."""
+    study, episodes = load_cells(study, runs_dir)
     cells = aggregate(study, episodes)
     pairs = comparisons(study, episodes)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -520,14 +547,20 @@ def write_outputs(study: Study, runs_dir: Path, out_dir: Path, quick: bool = Fal
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
+    from amex.errors import AmexError
+
     parser = OneLineParser(prog="python -m analysis.robustness", description=__doc__)
-    parser.add_argument("--episodes", type=int, default=50, help="environments per cell")
-    parser.add_argument("--quick", action="store_true", help="smoke version: 2 environments")
-    parser.add_argument("--runs", type=Path, default=Path("runs/robustness"))
+    parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/robustness"))
+    parser.add_argument("--quick", action="store_true", help="the smoke study's cells only")
     parser.add_argument("--out", type=Path, default=HERE / "out")
     args = parser.parse_args(argv)
-    study = quick_study() if args.quick else Study(episodes=args.episodes)
-    for path in write_outputs(study, args.runs, args.out, quick=args.quick):
+    study = quick_study() if args.quick else Study()
+    try:
+        written = write_outputs(study, args.runs, args.out, quick=args.quick)
+    except AmexError as e:
+        print(f"python -m analysis.robustness: error: {e}", file=sys.stderr)
+        return 2
+    for path in written:
         print(path)
     return 0
 

@@ -71,11 +71,17 @@ class Benchmark:
     overrides: tuple[str, ...]  # command-line overrides shared by its runs (task, method aside)
 
 
-def load_runs(root: Path) -> pd.DataFrame:
-    """All episodes under ``root`` as one DataFrame (a row per episode), typed."""
+def load_runs(root: Path, skip_logged: bool = False) -> pd.DataFrame:
+    """All episodes under ``root`` as one DataFrame (a row per episode), typed.
+
+    ``skip_logged``: leave out runs that logged their episodes (a ``logs/`` directory), e.g. a
+    study's one-episode runs for a figure, which repeat a row of a (maybe sharded) cell.
+    """
     if not root.is_dir():
         raise TableError(f"{root}: no such directory (run amex-run first, or RUNS=DIR)")
     files = sorted(root.rglob("episodes.csv"))
+    if skip_logged:
+        files = [f for f in files if not (f.parent / "logs").is_dir()]
     if not files:
         raise TableError(f"no episodes.csv under {root} (run amex-run first, or RUNS=DIR)")
     frames = []

@@ -8,6 +8,7 @@ import pandas as pd
 import pytest
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # as amex-run: results do not depend on it
 
 from analysis import pr2, robustness  # noqa: E402
 
@@ -28,9 +29,9 @@ def test_study_cells_are_paired_and_named_uniquely():
 
 def test_cell_config_sets_speed_noise_latency_and_prediction():
     cell = robustness.Cell("amex", 2.0, 0.01, True, lead_time=0.2, accel_std=0.1)
-    config = robustness.cell_config(cell, 3)
-    base = robustness.cell_config(robustness.Cell("amex", 1.0, 0.0, False), 3)
-    assert config.task == 2 and config.episodes == 3
+    config = robustness.cell_config(cell)
+    base = robustness.cell_config(robustness.Cell("amex", 1.0, 0.0, False))
+    assert config.task == 2 and config.episodes == 50  # conf/study/robustness.yaml
     assert config.scenario.goal_speed_std == pytest.approx(2 * base.scenario.goal_speed_std)
     assert config.perception.noise_std == 0.01 and config.perception.latency == 0.05
     assert config.prediction.enabled and config.prediction.lead_time == 0.2
@@ -39,49 +40,95 @@ def test_cell_config_sets_speed_noise_latency_and_prediction():
     assert config.outer_hz == 100.0 and config.mismatch.mass_scale == 1.0
 
 
-def test_quick_robustness_study_writes_report_csv_and_plots(tmp_path):
-    study = robustness.Study(
-        episodes=2,
-        speed_factors=(robustness.FAST,),
-        noise_levels=(robustness.SPEED_NOISE,),
-        methods=("amex", "dmp"),
-        tuning=((0.2, 0.5),),
-        overrides=SHORT,
-    )
-    written = robustness.write_outputs(study, tmp_path / "runs", tmp_path / "out", quick=True)
-    names = {p.name for p in written}
-    assert names == {
+def _study_jobs(name):
+    """The runs of ``amex-run -m study=<name>`` (what its sweeper launches), as configurations."""
+    from amex.cli import load_config
+    from amex.launch import sweep_settings
+    from amex.sweeps import sweep_jobs
+
+    params, grids, shards = sweep_settings([f"study={name}"], [])
+    return [load_config([f"study={name}", *job]) for job in sweep_jobs(params, grids, [], shards)]
+
+
+def test_the_robustness_sweep_runs_exactly_the_report_cells_each_once():
+    from amex.store import config_hash
+
+    runs = [config_hash(c) for c in _study_jobs("robustness")]
+    cells = {cell for _, cell in robustness.Study().sweeps()}
+    assert len(runs) == len(set(runs)) == len(cells)
+    assert set(runs) == {config_hash(robustness.cell_config(cell)) for cell in cells}
+
+
+def test_the_pr2_sweep_runs_every_cell_of_the_report_once_and_logs_fig6():
+    from amex.store import config_hash
+
+    configs = _study_jobs("pr2_like")
+    runs = [config_hash(c) for c in configs if c.log == "none"]
+    assert len(runs) == len(set(runs))  # no cell twice (stall variants equal to a table cell)
+    study = pr2.PR2Study()
+    base = ("study=pr2_like",)
+    cells = [
+        (f"task={t}", f"method={m}", *pr2.COMPENSATIONS[c])
+        for c in study.compensations
+        for t in study.tasks
+        for m in study.methods
+    ]
+    cells += [(f"task={t}", "method=amex", *pr2.KD400) for t in study.tasks]
+    cells += [("task=2", "method=amex", *extra) for extra in study.stall.values()]
+    from analysis.study import cell_config
+
+    assert set(runs) == {config_hash(cell_config(base, cell)) for cell in cells}
+    logged = [c for c in configs if c.log == "full"]
+    assert [(c.task, c.method.name, c.episodes) for c in logged] == [(2, "amex", 1)] * 2
+    assert {c.controller.disturbance for c in logged} == {"none", "observer"}
+
+
+def _amex_run(args, cwd):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    env = {k: v for k, v in os.environ.items() if k != "AMEX_DEBUG"}
+    command = [str(Path(sys.executable).parent / "amex-run"), *args]
+    return subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=env, timeout=600)
+
+
+def test_the_robustness_study_runs_as_a_sweep_and_the_analysis_only_reads_it(tmp_path):
+    runs = tmp_path / "runs"
+    args = [
+        "-m",
+        "study=robustness",
+        "episodes=2",
+        *SHORT,
+        "hydra.sweeper.params.method=amex",  # a smaller study: AMEX, one tuning grid
+        "~hydra.sweeper.grids.tuning_accel",
+        "~hydra.sweeper.grids.tuning_both",
+        f"hydra.sweep.dir={runs}",
+    ]
+    proc = _amex_run(args, tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "17 jobs in" in proc.stderr.strip().splitlines()[-1]
+    study = robustness.Study(methods=("amex",), tuning=((0.0, 0.5), (0.1, 0.5), (0.4, 0.5)))
+    written = robustness.write_outputs(study, runs, tmp_path / "out")
+    assert {p.name for p in written} == {
         "robustness.md",
         "robustness.csv",
         "robustness_speed.png",
         "robustness_noise.png",
     }
-    for path in written:
-        assert path.stat().st_size > 0
     cells = pd.read_csv(tmp_path / "out" / "robustness.csv")
-    for col in (
-        "sweep",
-        "method",
-        "prediction",
-        "speed_factor",
-        "noise_std",
-        "episodes",
-        "success",
-        "success_ci_low",
-        "final_time_mean",
-        "final_time_ci_high",
-    ):
+    for col in ("sweep", "method", "prediction", "speed_factor", "noise_std", "success_ci_low"):
         assert col in cells.columns
-    assert set(cells.sweep) == {"speed", "noise", "tuning"}
-    assert (cells.episodes == 2).all()
+    assert set(cells.sweep) == {"speed", "noise", "tuning"} and (cells.episodes == 2).all()
     report = (tmp_path / "out" / "robustness.md").read_text()
     assert "prediction on minus off" in report and "Wilcoxon" in report
-    pairs = robustness.comparisons(study, robustness.run_cells(study, tmp_path / "runs"))
-    assert {"final_time", "success"} <= set(pairs.metric)
-    assert {"amex", "dmp"} == set(pairs.method)
-    # resumable: a second call runs nothing new and gives the same table
-    again = robustness.aggregate(study, robustness.run_cells(study, tmp_path / "runs"))
-    assert again.success.tolist() == cells.success.tolist()
+    # the analysis starts no run: a cell the sweep did not run is one line, exit code 2
+    missing = robustness.main([str(runs), "--out", str(tmp_path / "out2")])
+    assert missing == 2 and not (tmp_path / "out2").exists()
+    # the same command resumes: nothing left to run
+    again = _amex_run(args, tmp_path)
+    assert again.returncode == 0 and "17 jobs in" in again.stderr.strip().splitlines()[-1]
+    assert len(list(runs.glob("*/episodes.csv"))) == 17
 
 
 def test_pr2_experiment_composes_like_the_experiment_file():
@@ -92,22 +139,36 @@ def test_pr2_experiment_composes_like_the_experiment_file():
     assert config.method.pos.kd == 40.0  # the experiment leaves the methods' gains alone
 
 
-def test_pr2_experiment_runs_every_method_and_draws_fig6(tmp_path):
-    study = pr2.PR2Study(
-        episodes=1,
-        stall_episodes=1,
-        tasks=(2,),
-        stall={"original": (), "Kd 400": pr2.KD400},
-        overrides=SHORT,
-    )
-    written = pr2.write_outputs(study, tmp_path / "runs", tmp_path / "out")
+def test_the_pr2_study_runs_as_a_sweep_and_fig6_comes_from_its_logs(tmp_path):
+    runs = tmp_path / "runs"
+    stall = [f"~hydra.sweeper.grids.{g}" for g in pr2_stall_grids()]
+    args = [
+        "-m",
+        "study=pr2_like",
+        "episodes=1",
+        *SHORT,
+        "hydra.sweeper.grids.table.task=2",
+        "hydra.sweeper.grids.kd400.task=2",
+        *stall,
+        f"hydra.sweep.dir={runs}",
+    ]
+    proc = _amex_run(args, tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "12 jobs in" in proc.stderr.strip().splitlines()[-1]
+    study = pr2.PR2Study(tasks=(2,), stall={"original": (), "Kd 400": pr2.KD400})
+    written = pr2.write_outputs(study, runs, tmp_path / "out")
     assert [p.name for p in written] == ["pr2_like.md", "fig6_pr2_like.png"]
     assert written[1].stat().st_size > 10_000
-    for method in pr2.PR2_METHODS:
-        for name in ("pr2_like", "pr2_like_observer", "pr2_like_integral"):
-            assert (tmp_path / "runs" / name / f"task2_{method}_seed0" / "episodes.csv").exists()
+    assert len(list(runs.glob("*/logs/episode_000.mcap"))) == 2
     report = written[0].read_text()
     assert "| 2 | amex |" in report and "| 2 | cr |" in report and "| 2 | dmp |" in report
     assert "Why AMEX stalls" in report and "Kd 400" in report
     assert "| 2 | amex | observer |" in report and "| 2 | cr | integral |" in report
     assert "| 2 | dmp observer | dmp none | final_time |" in report
+
+
+def pr2_stall_grids():
+    from omegaconf import OmegaConf
+
+    conf = OmegaConf.load(pr2.HERE.parent / "conf" / "study" / "pr2_like.yaml")
+    return [name for name in conf.hydra.sweeper.grids if name.startswith("stall_")]
