@@ -83,11 +83,13 @@ studies: $(STAMP)
 
 ## The whole comparison: 4 tasks x 3 methods x 150 environments, then the table.
 ## EXPERIMENT=original runs the authors' setup (conf/experiment/original.yaml) into runs/paper_original.
+## SHARDS=K splits every cell over K jobs (a new directory: shards and whole runs do not mix).
 ## Re-running resumes: recorded episodes are kept and skipped.
 EXPERIMENT ?=
+SHARDS ?=
 PAPER_DIR ?= runs/paper$(if $(EXPERIMENT),_$(EXPERIMENT))
 paper: $(STAMP)
-	$(BIN)/amex-run -m $(if $(EXPERIMENT),experiment=$(EXPERIMENT)) task=1,2,3,4 method=amex,dmp,cr hydra.sweep.dir=$(PAPER_DIR)
+	$(BIN)/amex-run -m $(if $(EXPERIMENT),experiment=$(EXPERIMENT)) task=1,2,3,4 method=amex,dmp,cr $(if $(SHARDS),shards=$(SHARDS)) hydra.sweep.dir=$(PAPER_DIR)
 	$(BIN)/python -m analysis.table $(PAPER_DIR)
 
 ## From the authors' setup to ours one factor at a time (conf/experiment/ablation/): step 0 is
