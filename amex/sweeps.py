@@ -52,6 +52,13 @@ def job_value(job: Sequence[str], key: str, default: Any = None) -> Any:
     return found
 
 
+def _override(key: str, value: Any) -> str:
+    """``key=value`` as an override (YAML booleans as Hydra's ``true``/``false``)."""
+    if isinstance(value, bool):
+        value = "true" if value else "false"
+    return f"{key}={value}"
+
+
 def _product(overrides: list[str]) -> list[list[str]]:
     """The Cartesian product of ``overrides`` (Hydra's basic sweeper; later keys win)."""
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
@@ -78,10 +85,10 @@ def sweep_jobs(
     Raises:
         hydra's OverrideParseException: a value that is not a valid override.
     """
-    base = [f"{k}={v}" for k, v in (params or {}).items()]
+    base = [_override(k, v) for k, v in (params or {}).items()]
     products: list[list[str]] = []
     for grid in grids.values() if grids else [{}]:
-        extra = [f"{k}={v}" for k, v in (grid or {}).items()]
+        extra = [_override(k, v) for k, v in (grid or {}).items()]
         products += _product([*base, *extra, *arguments])
     jobs: list[list[str]] = []
     seen: set[tuple[str, ...]] = set()
