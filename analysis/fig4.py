@@ -11,7 +11,8 @@ path. Each episode is run here and logged to MCAP in a temporary directory, then
 Two views: (a) a MuJoCo offscreen render of the scene (:mod:`amex.log.render`: the arm as the
 log's URDF describes it, at the end of the first method's episode), if headless OpenGL works here
 (otherwise (a) says why it is missing); (b) a labelled 3-D plot, with top and side projections
-below. Run ``python -m analysis.fig4 [OUT_DIR]``.
+below. Run ``python -m analysis.fig4 [OUT_DIR] [OVERRIDES]``, e.g. ``robot=chain7`` or
+``experiment=original``: the arm, the scene and the camera (aimed at the paths) follow them.
 """
 
 from __future__ import annotations
@@ -90,14 +91,25 @@ def episode_from_log(path: Path | str) -> Episode:
     )
 
 
-def run_logged(task: int, env: int, methods: list[str], out_dir: Path, seed: int = SEED) -> dict:
-    """Run environment ``env`` of ``task`` with each method, logged into ``out_dir``; read back."""
+def run_logged(
+    task: int,
+    env: int,
+    methods: list[str],
+    out_dir: Path,
+    seed: int = SEED,
+    overrides: tuple[str, ...] = (),
+) -> dict:
+    """Run environment ``env`` of ``task`` with each method, logged into ``out_dir``; read back.
+
+    ``overrides`` are command-line overrides of every run (``robot=chain7``,
+    ``experiment=original``): the figure follows the robot and the scene they choose.
+    """
     from amex.cli import load_config
     from amex.runner import prepare, run_one
 
     episodes = {}
     for name in methods:
-        config = load_config([f"task={task}", f"method={name}", f"seed={seed}"])
+        config = load_config([f"task={task}", f"method={name}", f"seed={seed}", *overrides])
         path = out_dir / f"task{task}_env{env:03d}_{name}.mcap"
         if not path.exists():
             run_one(config, prepare(config), env, path)
@@ -113,7 +125,9 @@ def available_methods() -> list[str]:
 
 
 def plot_fig4(
-    out_dir: Path | str, runs_or_none: Mapping[str, Path | str] | None = None
+    out_dir: Path | str,
+    runs_or_none: Mapping[str, Path | str] | None = None,
+    overrides: tuple[str, ...] = (),
 ) -> list[Path]:
     """Draw Fig. 4 into ``out_dir/fig4_task3.png``; return ``[its path]`` (like ``plot_fig2``).
 
@@ -122,6 +136,7 @@ def plot_fig4(
         runs_or_none: MCAP logs of one environment by method name (e.g. from
             ``amex-run task=3 method=amex episodes=1 log=full``); None runs environment
             :data:`ENV` of Task 3 with every registered method among AMEX, DMP and CR.
+        overrides: command-line overrides of those runs (e.g. ``robot=chain7``).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -129,9 +144,10 @@ def plot_fig4(
         episodes = {name: episode_from_log(path) for name, path in runs_or_none.items()}
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            episodes = run_logged(TASK, ENV, available_methods(), Path(tmp))
+            episodes = run_logged(TASK, ENV, available_methods(), Path(tmp), overrides=overrides)
     image, why = render_scene(episodes)
-    return [_draw(episodes, image, why, out_dir / "fig4_task3.png")]
+    suffix = "".join(f"_{o.split('=', 1)[1]}" for o in overrides if "=" in o)
+    return [_draw(episodes, image, why, out_dir / f"fig4_task3{suffix.replace('/', '-')}.png")]
 
 
 def _draw(episodes: dict[str, Episode], image: np.ndarray | None, why: str, path: Path) -> Path:
@@ -344,5 +360,7 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
     return np.flipud(rgb)
 
 
-if __name__ == "__main__":
-    print(*plot_fig4(Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).parent / "out"))
+if __name__ == "__main__":  # python -m analysis.fig4 [OUT_DIR] [overrides, e.g. robot=chain7]
+    given = sys.argv[1:]
+    out = Path(given.pop(0)) if given and "=" not in given[0] else Path(__file__).parent / "out"
+    print(*plot_fig4(out, overrides=tuple(given)))
