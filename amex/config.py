@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from amex.control.disturbance import DisturbanceConfig
 from amex.control.osc import PD, OSCGains
 from amex.episode import LoopConfig, MismatchConfig
 from amex.errors import ConfigError
@@ -21,7 +22,7 @@ from amex.plan.reference import PlanConfig
 from amex.robot import RobotConfig, load_robot
 from amex.scaling import scale_power, scale_value, scaled, to_scene_units
 from amex.scenario import TASKS, ScenarioConfig
-from amex.schema import check_tree
+from amex.schema import check_tree, limits
 
 LOG_LEVELS = ("none", "full")
 MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
@@ -42,6 +43,13 @@ class ControllerConfig:
         drift: subtract the TCP tasks' drift J_dot v (the original did not).
         joint_only: joint-target commands (CR) are tracked by the joint task alone, without the
             damping and collision tasks (the authors' CR controller).
+        disturbance: compensation of unmodelled torques: ``none`` (the paper's controller),
+            ``observer`` (generalized-momentum observer) or ``integral`` (integral action on the
+            task errors); :mod:`amex.control.disturbance`. Dynamic simulation only.
+        observer_bandwidth: the observer's gain K_O, bandwidth of its estimate [1/s].
+        observer_limit: clamp of the observer's estimate, fraction of the torque limits [-].
+        integral_gain: K_I of the integral action [1/s].
+        integral_limit: bound of the integral's task acceleration [m/s^2, rad/s^2].
     """
 
     col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
@@ -52,6 +60,25 @@ class ControllerConfig:
     metric: str = "identity"
     drift: bool = True
     joint_only: bool = False
+    disturbance: str = "none"
+    observer_bandwidth: float = field(default=20.0, metadata=limits(gt=0))
+    observer_limit: float = field(default=1.0, metadata=limits(gt=0, le=1))
+    integral_gain: float = field(default=10.0, metadata=limits(gt=0))
+    integral_limit: float = field(default=50.0, metadata=limits(gt=0))
+
+    def compensation(self) -> DisturbanceConfig:
+        """The inner controller's disturbance compensation (:mod:`amex.control.disturbance`)."""
+        return DisturbanceConfig(
+            kind=self.disturbance,
+            bandwidth=float(self.observer_bandwidth),
+            limit=float(self.observer_limit),
+            integral_gain=float(self.integral_gain),
+            integral_limit=float(self.integral_limit),
+        )
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for an unknown ``disturbance`` (run by ``check_tree``)."""
+        self.compensation().validate()
 
 
 @dataclass
@@ -169,6 +196,11 @@ def validate(config: RunConfig) -> None:
         raise ConfigError(
             f"invalid mismatch={config.mismatch} with sim=kinematic; "
             "valid: the defaults (a kinematic simulation has no dynamics to mismatch)"
+        )
+    if config.sim == "kinematic" and config.controller.disturbance != "none":
+        raise ConfigError(
+            f"invalid controller.disturbance={config.controller.disturbance!r} with "
+            "sim=kinematic; valid: none (a kinematic simulation has no torques to compensate)"
         )
     config.loop.validate()
     if config.loop.stop_radius > config.success_radius:

@@ -46,6 +46,7 @@ import numpy as np
 
 from amex.control import kernels
 from amex.control.collision import CollisionModel
+from amex.control.disturbance import DisturbanceConfig, make_inner_controller
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
 from amex.errors import AmexError, ConfigError, SimulationError
@@ -204,6 +205,7 @@ def run_episode(
     perception: PerceptionConfig | None = None,
     prediction: PredictionConfig | None = None,
     mismatch: MismatchConfig | None = None,
+    disturbance: DisturbanceConfig | None = None,
 ) -> EpisodeResult:
     """Execute ``method`` in ``scenario`` and measure it (see :mod:`amex.metrics`).
 
@@ -217,6 +219,8 @@ def run_episode(
         perception: goal noise and latency seen by the method (default: exact).
         prediction: Kalman prediction of the perceived goal (default: off).
         mismatch: how the simulated arm differs from the controller's model (default: none).
+        disturbance: compensation of unmodelled torques in the inner controller (default: none,
+            the paper's controller); see :mod:`amex.control.disturbance`.
     """
     sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
     perception = perception or PerceptionConfig()
@@ -246,6 +250,9 @@ def run_episode(
     gx, gy, gz = goal.tolist()
     goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
     kinematic = loop.kinematic
+    # the dynamic step's controller: the OSC itself, or the OSC with disturbance compensation (a
+    # kinematic simulation has no dynamics to compensate: it never uses one)
+    inner = make_inner_controller(osc, dt, None if kinematic else disturbance)
     detect_contacts = kinematic and scenario.n_obstacles > 0
     no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
     q_history = np.empty((n_steps + 1, robot.nv))  # joint angles of every inner step
@@ -317,7 +324,7 @@ def run_episode(
                     mujoco.mj_kinematics(mjm, mjd)
                     mujoco.mj_collision(mjm, mjd)
             else:
-                tau = osc.torque(state, command)
+                tau = inner.torque(state, command)
                 mjd.qfrc_applied[:] = tau
                 mujoco.mj_step(mjm, mjd)
                 qacc = mjd.qacc

@@ -125,6 +125,7 @@ def run_one(
         "perception": config.perception,
         "prediction": config.prediction,
         "mismatch": config.mismatch,
+        "disturbance": config.controller.compensation(),
     }
     if log_path is None:
         return run_episode(context.robot, method, scenario, config.gains(), config.loop, **world)

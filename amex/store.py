@@ -58,6 +58,11 @@ _ADDED_OPTIONS: dict[tuple[str, ...], object] = {
     ("robot", "package_dirs"): [],
     ("robot", "torque_limit"): [],
     ("robot", "velocity_limit"): [],
+    ("controller", "disturbance"): "none",
+    ("controller", "observer_bandwidth"): 20.0,
+    ("controller", "observer_limit"): 1.0,
+    ("controller", "integral_gain"): 10.0,
+    ("controller", "integral_limit"): 50.0,
 }
 
 

@@ -8,15 +8,19 @@ the controller's model, 0.3 N m Coulomb friction, 0.5 N m s/rad viscous damping)
    experiment=pr2_like task=T method=M`` and run in-process into
    ``runs/pr2_like/task<T>_<M>_seed0/`` (the directory names of an ``amex-run -m`` sweep with
    ``hydra.sweep.dir=runs/pr2_like``, so either fills and resumes the other), then the Fig. 5
-   table of :mod:`analysis.table`; plus AMEX with a stiffer velocity loop (``method.pos.kd`` and
+   table of :mod:`analysis.table`; the same again with each disturbance compensation of the
+   inner controller (:data:`COMPENSATIONS`, ``controller.disturbance=observer|integral``) into
+   ``runs/pr2_like_<name>/``, tabulated side by side and paired against the paper's controller;
+   plus AMEX with a stiffer velocity loop (``method.pos.kd`` and
    ``method.dir.kd`` 400, see below) into ``runs/pr2_like_variants/amex_kd400/``, reported apart
    and paired against AMEX with the original gains and against DMP.
 2. ``stall``: why AMEX stalls under ``pr2_like`` with the original inner gains (Kp 1, Kd 100): on
    Task 2, AMEX with other gains and with one mismatch term at a time, into
    ``runs/pr2_like_stall/<variant>/``.
 3. ``fig6``: the paper's Fig. 6 analogue from one Task-2 AMEX episode: the reference TCP path,
-   the executed paths (original gains, and Kd 400), the perceived goals as dots, and below the
-   phase and the commanded versus actual TCP speed over time.
+   the executed paths (the paper's inner controller, and the same with the disturbance
+   observer), the perceived goals as dots, and below the phase and the commanded versus actual
+   TCP speed over time.
 
 Outputs: ``analysis/out/pr2_like.md`` and ``analysis/out/fig6_pr2_like.png``.
 
@@ -46,6 +50,14 @@ SEED = 0
 KD400 = ("method.pos.kd=400", "method.dir.kd=400")
 #: AMEX variants run on every task besides the configured AMEX: name -> overrides.
 AMEX_VARIANTS = {"amex_kd400": KD400}
+OBSERVER = ("controller.disturbance=observer",)
+#: Inner-loop disturbance compensations run with every method on every task: name -> overrides.
+#: ``none`` is the paper's controller (the main table, ``runs/pr2_like``).
+COMPENSATIONS: dict[str, tuple[str, ...]] = {
+    "none": (),
+    "observer": OBSERVER,
+    "integral": ("controller.disturbance=integral",),
+}
 NO_MISMATCH = ("mismatch.mass_scale=1", "mismatch.friction=0", "mismatch.damping=0")
 #: The stall analysis (Task 2, AMEX): label -> overrides on top of ``experiment=pr2_like``.
 STALL = {
@@ -73,6 +85,8 @@ STALL = {
     "no mismatch (20 Hz, camera only)": NO_MISMATCH,
     "exact goal perception (mismatch only)": ("perception.noise_std=0", "perception.latency=0"),
     "100 Hz (mismatch, camera)": ("outer_hz=100",),
+    "disturbance observer in the inner loop": OBSERVER,
+    "integral action in the inner loop": COMPENSATIONS["integral"],
 }
 FIG6_ENV = 0  # the Task-2 environment drawn
 
@@ -86,6 +100,7 @@ class PR2Study:
         stall_episodes: environments per stall variant (0: skip the stall analysis).
         tasks: tasks of the table.
         methods: methods of the table.
+        compensations: inner-loop compensations of the table (keys of :data:`COMPENSATIONS`).
         stall: stall variants (label -> overrides).
         overrides: extra overrides for every run (e.g. ``max_time=0.5`` in tests).
     """
@@ -94,6 +109,7 @@ class PR2Study:
     stall_episodes: int = 30
     tasks: tuple[int, ...] = TASKS
     methods: tuple[str, ...] = PR2_METHODS
+    compensations: tuple[str, ...] = tuple(COMPENSATIONS)
     stall: dict[str, tuple[str, ...]] = field(default_factory=lambda: dict(STALL))
     overrides: tuple[str, ...] = ()
 
@@ -130,26 +146,40 @@ def _episodes(run_dir: Path, n: int) -> pd.DataFrame:
     return df[df.env < n].copy()
 
 
+def compensation_dir(runs: Path, name: str) -> Path:
+    """Where the runs with compensation ``name`` live (``none``: ``runs/pr2_like``)."""
+    return runs / (EXPERIMENT if name == "none" else f"{EXPERIMENT}_{name}")
+
+
 def run_table(study: PR2Study, runs: Path) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]]:
-    """Run the methods and the AMEX variants on every task; return their episodes."""
-    main = runs / EXPERIMENT
-    for task in study.tasks:
-        for method in study.methods:
-            config = pr2_config(task, method, study.episodes, study.overrides)
-            _run(config, main / f"task{task}_{method}_seed{SEED}", f"task {task} {method}")
+    """Run the methods (under every compensation) and the AMEX variants on every task.
+
+    Returns:
+        the methods' episodes with a ``compensation`` column, and each AMEX variant's episodes.
+    """
+    frames = []
+    for name in study.compensations:
+        root = compensation_dir(runs, name)
+        extra = (*study.overrides, *COMPENSATIONS[name])
+        for task in study.tasks:
+            for method in study.methods:
+                config = pr2_config(task, method, study.episodes, extra)
+                label = f"task {task} {method}" + ("" if name == "none" else f" {name}")
+                _run(config, root / f"task{task}_{method}_seed{SEED}", label)
+        df = load_runs(root)
+        keep = df.task.isin(study.tasks) & df.method.isin(study.methods)
+        frames.append(df[keep & (df.env < study.episodes)].assign(compensation=name))
     variants: dict[str, pd.DataFrame] = {}
     if "amex" in study.methods:
         for name, extra in AMEX_VARIANTS.items():
-            frames = []
+            vframes = []
             for task in study.tasks:
                 config = pr2_config(task, "amex", study.episodes, (*study.overrides, *extra))
                 run_dir = runs / f"{EXPERIMENT}_variants" / name / f"task{task}_amex_seed{SEED}"
                 _run(config, run_dir, f"task {task} {name}")
-                frames.append(_episodes(run_dir, study.episodes))
-            variants[name] = pd.concat(frames, ignore_index=True)
-    df = load_runs(main)
-    df = df[df.task.isin(study.tasks) & df.method.isin(study.methods) & (df.env < study.episodes)]
-    return df.reset_index(drop=True), variants
+                vframes.append(_episodes(run_dir, study.episodes))
+            variants[name] = pd.concat(vframes, ignore_index=True)
+    return pd.concat(frames, ignore_index=True), variants
 
 
 def run_stall(study: PR2Study, runs: Path) -> pd.DataFrame:
@@ -280,7 +310,7 @@ class Trace:
 def record_episode(
     env: int = FIG6_ENV, overrides: Sequence[str] = (), label: str = "AMEX"
 ) -> Trace:
-    """Run Task-2 environment ``env`` with AMEX under ``pr2_like`` and record it."""
+    """Record Task-2 environment ``env`` with AMEX under ``pr2_like`` plus ``overrides``."""
     from amex.episode import run_episode
     from amex.methods import get_method
     from amex.runner import prepare
@@ -305,6 +335,7 @@ def record_episode(
         perception=config.perception,
         prediction=config.prediction,
         mismatch=config.mismatch,
+        disturbance=config.controller.compensation(),
     )
     series = recorder.arrays()
     goal = np.array([scenario.goal_at(t) for t in series["t"]])
@@ -429,6 +460,58 @@ def _fmt_table(table: pd.DataFrame, episodes: pd.DataFrame, max_time: float) -> 
     return table[keep]
 
 
+def compensation_table(df: pd.DataFrame, max_time: float) -> pd.DataFrame:
+    """Per task, method and compensation: success, time, distance, timeouts, smoothness."""
+    order = {name: i for i, name in enumerate(COMPENSATIONS)}
+    tables = []
+    for name, g in df.groupby("compensation"):
+        t = _fmt_table(combined(aggregate(g), paper_table()), g, max_time)
+        medians = g.groupby(["task", "method"]).sum_sq_acc.median().map(lambda v: f"{v:.3g}")
+        t = t.merge(medians.rename("sum sq. acc. (median)").reset_index(), on=["task", "method"])
+        tables.append(t.assign(compensation=name, _c=order.get(str(name), len(order))))
+    table = pd.concat(tables, ignore_index=True)
+    rank = {m: i for i, m in enumerate(PR2_METHODS)}
+    table["_m"] = table.method.map(lambda m: rank.get(m, len(rank)))
+    table = table.sort_values(["task", "_m", "_c"])
+    cols = [
+        "task",
+        "method",
+        "compensation",
+        "n",
+        "success",
+        "success 0.05 m",
+        "collided",
+        "final time [s]",
+        "final dist. [cm]",
+        "timeouts",
+        "sum sq. acc.",
+        "sum sq. acc. (median)",
+    ]
+    return table[cols].reset_index(drop=True)
+
+
+def compensation_pairs(df: pd.DataFrame) -> list[dict]:
+    """Paired rows: every compensation minus ``none``, and ``integral`` minus ``observer``."""
+    names = [n for n in COMPENSATIONS if n in set(df.compensation)]
+    contrasts = [(n, "none") for n in names if n != "none" and "none" in names]
+    if "integral" in names and "observer" in names:
+        contrasts.append(("integral", "observer"))
+    rows: list[dict] = []
+    for task in sorted(df.task.unique()):
+        for method in [m for m in PR2_METHODS if m in set(df.method)]:
+            cell = df[(df.task == task) & (df.method == method)]
+            for a, b in contrasts:
+                stats = paired_stats(
+                    cell[cell.compensation == a],
+                    cell[cell.compensation == b],
+                    ("success", "final_time", "sum_sq_acc"),
+                )
+                rows += stats.assign(task=task, a=f"{method} {a}", b=f"{method} {b}").to_dict(
+                    "records"
+                )
+    return rows
+
+
 def _pairs_table(rows: list[dict]) -> str:
     df = pd.DataFrame.from_records(rows)
     df["mean_diff"] = df.mean_diff.map(lambda v: f"{v:.3g}")
@@ -452,6 +535,8 @@ def render(
         "gives no numbers for the PR2: its columns are its simulated Fig. 5 (100 Hz, exact "
         "model), for scale only. Regenerate: `python -m analysis.pr2`.\n",
     ]
+    compensated = df
+    df = df[df.compensation == "none"]
     ours = aggregate(df)
     max_time = pr2_config(1, "amex", 1, study.overrides).max_time
     parts.append(_markdown(_fmt_table(combined(ours, paper_table()), df, max_time)))
@@ -459,6 +544,23 @@ def render(
     if len(pairs):
         parts.append("\n## Paired comparisons (a - b on identical environments)\n")
         parts.append(_pairs_table(pairs.to_dict("records")))
+    if compensated.compensation.nunique() > 1:
+        parts.append("\n## Disturbance compensation in the inner loop (`controller.disturbance`)\n")
+        parts.append(
+            "The same runs with the unmodelled torque estimated and compensated in the inner "
+            "controller that every method shares (`amex/control/disturbance.py`): `observer`, a "
+            "generalized-momentum observer (bandwidth `controller.observer_bandwidth`, "
+            "tau = M q_ddot* + h - r); `integral`, integral action on the task errors of Eq. 6 "
+            "(`controller.integral_gain`); `none`, the paper's controller (the table above). "
+            "The methods keep their original gains. `sum sq. acc. (median)`: the mean is "
+            "dominated by a few episodes.\n"
+        )
+        parts.append(_markdown(compensation_table(compensated, max_time)))
+        parts.append(
+            "\nPaired on identical environments: each compensation minus the paper's controller "
+            "(`none`), and the integral minus the observer.\n"
+        )
+        parts.append(_pairs_table(compensation_pairs(compensated)))
     for name, vdf in variants.items():
         label = f"amex ({name.removeprefix('amex_')})"
         parts.append(f"\n## AMEX with `{' '.join(AMEX_VARIANTS[name])}` (deviation)\n")
@@ -523,8 +625,10 @@ def write_outputs(study: PR2Study, runs: Path, out_dir: Path) -> list[Path]:
     tmp = md.with_suffix(".md.tmp")
     tmp.write_text(render(study, df, variants, stall))
     os.replace(tmp, md)
-    traces = [record_episode(overrides=study.overrides, label="Kp 1, Kd 100 (original)")]
-    traces.append(record_episode(overrides=(*study.overrides, *KD400), label="Kd 400"))
+    traces = [record_episode(overrides=study.overrides, label="paper's controller")]
+    traces.append(
+        record_episode(overrides=(*study.overrides, *OBSERVER), label="disturbance observer")
+    )
     fig = plot_fig6(traces, out_dir / "fig6_pr2_like.png")
     return [md, fig]
 

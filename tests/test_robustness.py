@@ -104,7 +104,10 @@ def test_pr2_experiment_runs_every_method_and_draws_fig6(tmp_path):
     assert [p.name for p in written] == ["pr2_like.md", "fig6_pr2_like.png"]
     assert written[1].stat().st_size > 10_000
     for method in pr2.PR2_METHODS:
-        assert (tmp_path / "runs" / "pr2_like" / f"task2_{method}_seed0" / "episodes.csv").exists()
+        for name in ("pr2_like", "pr2_like_observer", "pr2_like_integral"):
+            assert (tmp_path / "runs" / name / f"task2_{method}_seed0" / "episodes.csv").exists()
     report = written[0].read_text()
     assert "| 2 | amex |" in report and "| 2 | cr |" in report and "| 2 | dmp |" in report
     assert "Why AMEX stalls" in report and "Kd 400" in report
+    assert "| 2 | amex | observer |" in report and "| 2 | cr | integral |" in report
+    assert "| 2 | dmp observer | dmp none | final_time |" in report
