@@ -8,6 +8,8 @@ directories). It writes ``compare.md``:
 * the numbers: per task and method the success (at 0.03 m and at the paper's counted 0.05 m),
   the final time, the sum of squared accelerations as the paper computed it
   (``sum_sq_acc_paper``) and exact (``sum_sq_acc``), for the paper and every benchmark;
+* the same measures with a row per benchmark (the ablation's view: which step moves which
+  number);
 * the paper's claims checked on each: on the paper's own numbers, and on every benchmark as the
   paper computed its figures (success at 0.05 m, ``sum_sq_acc_paper``) and exactly (success at
   0.03 m, ``sum_sq_acc``).
@@ -95,6 +97,33 @@ def numbers(frames: dict[str, pd.DataFrame]) -> str:
     return "\n".join(lines)
 
 
+#: The measures of :func:`by_benchmark`: title, column, format.
+MEASURES = (
+    ("Success at 0.05 m (the paper's count)", "success_005", ".2f"),
+    ("Mean final time [s]", "final_time_mean", ".2f"),
+    ("Final time, 2 std [s]", "final_time_2std", ".2f"),
+    ("Sum of squared accelerations as the paper computed it", "sum_sq_acc_paper_mean", ".3g"),
+    ("Sum of squared accelerations, exact", "sum_sq_acc_mean", ".3g"),
+)
+
+
+def by_benchmark(frames: dict[str, pd.DataFrame], title: str, col: str, fmt: str) -> str:
+    """One measure, a row per benchmark and a column per task and method, as Markdown."""
+    head = ["benchmark"] + [f"T{t} {m}" for t in (1, 2, 3, 4) for m in PAPER_METHODS]
+    lines = [f"### {title}\n", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for label, df in frames.items():
+        col_here = col
+        if label == "paper":  # its success was counted at 0.05 m; its sums as it computed them
+            col_here = {"success_005": "success", "sum_sq_acc_mean": ""}.get(col, col)
+        cells = [
+            _cell(df, t, m, col_here, fmt) if col_here else ""
+            for t in (1, 2, 3, 4)
+            for m in PAPER_METHODS
+        ]
+        lines.append("| " + " | ".join([label, *cells]) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def verdicts(frames: dict[str, pd.DataFrame]) -> str:
     """The paper's claims on every benchmark (and both smoothness computations) as Markdown."""
     columns: dict[str, list[tuple[str, str, str]]] = {}
@@ -131,7 +160,9 @@ def report(frames: dict[str, pd.DataFrame], sources: dict[str, Path]) -> str:
             "computed the sum of squared accelerations from joint angles rounded to 6 digits "
             "(`sum_sq_acc_paper`).\n",
             numbers(frames),
-            "\n## The paper's claims on each\n",
+            "\n## By benchmark\n",
+            *(by_benchmark(frames, *m) for m in MEASURES),
+            "## The paper's claims on each\n",
             verdicts(frames),
             "",
         ]

@@ -46,12 +46,11 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
         for i, a in enumerate(methods):
             for b in methods[i + 1 :]:
                 wide = sub[sub.method.isin([a, b])].pivot(index="env", columns="method")
-                wide = wide.dropna()
-                if len(wide) < 2:
-                    continue
                 for metric in (m for m in PAIRED_METRICS if m in sub):
                     d = (wide[(metric, a)].astype(float) - wide[(metric, b)].astype(float))
-                    d = d.to_numpy()
+                    d = d.dropna().to_numpy()  # environments both ran, the metric recorded
+                    if len(d) < 2:
+                        continue
                     lo, hi = bootstrap_ci(d, seed=int(task))
                     p = 1.0 if np.all(d == 0) else float(wilcoxon(d, zero_method="zsplit").pvalue)
                     records.append(

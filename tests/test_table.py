@@ -181,7 +181,7 @@ def test_compare_sets_benchmarks_beside_the_paper_and_checks_the_claims_on_each(
     assert compare([f"a={runs}", f"b={runs}", "--out", str(tmp_path)]) == 0
     md = (tmp_path / "compare.md").read_text()
     assert "| final time [s]: paper | final time [s]: a | final time [s]: b |" in md
-    assert "| 1 | amex | 1.00 |" in md  # the paper's Task-1 AMEX success first
+    assert "| paper | 1.00 | 1.00 | 1.00 | 0.99 |" in md  # the paper's success by task and method
     claims = md.split("## The paper's claims on each")[1]
     assert "| claim | paper | a (as the paper computed) | a (exact) | b (as" in claims
     assert "| AMEX is smoother than DMP | holds |" in claims  # on the paper's own numbers

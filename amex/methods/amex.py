@@ -374,9 +374,13 @@ class AMEX(Method):
 
     def internals(self) -> dict[str, Any]:
         """Phase s, Eq. 8 factors delta_g and delta_y, targets y_star and yd_star (last update)."""
-        t = self._last
-        if t is None:
-            return {"s": self._s, "delta_g": 1.0, "delta_y": 1.0, "y_star": None, "yd_star": None}
-        return {"s": t.s, "delta_g": t.delta_g, "delta_y": t.delta_y, "y_star": t.y_star,
-                "yd_star": t.yd_star}  # fmt: skip
+        return target_internals(self._last, self._s)
+
+
+def target_internals(last: AMEXTarget | None, s: float) -> dict[str, Any]:
+    """The log record of an AMEX update (``s`` before the first one)."""
+    if last is None:
+        return {"s": s, "delta_g": 1.0, "delta_y": 1.0, "y_star": None, "yd_star": None}
+    return {"s": last.s, "delta_g": last.delta_g, "delta_y": last.delta_y,
+            "y_star": last.y_star, "yd_star": last.yd_star}  # fmt: skip
 

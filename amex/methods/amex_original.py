@@ -31,7 +31,7 @@ import numpy as np
 
 from amex.errors import ConfigError
 from amex.interfaces import Command
-from amex.methods.amex import AMEXConfig, AMEXTarget
+from amex.methods.amex import AMEXConfig, AMEXTarget, target_internals
 from amex.methods.base import Method, MethodConfig, Observation
 
 
@@ -153,9 +153,5 @@ class AMEXOriginal(Method):
         return Command(y=target.y_star, yd=target.yd_star)
 
     def internals(self) -> dict[str, Any]:
-        """Phase s and the Eq. 8 factors of the last update."""
-        t = self._last
-        if t is None:
-            return {"s": self._s, "delta_g": 1.0, "delta_y": 1.0, "y_star": None, "yd_star": None}
-        return {"s": t.s, "delta_g": t.delta_g, "delta_y": t.delta_y, "y_star": t.y_star,
-                "yd_star": t.yd_star}  # fmt: skip
+        """Phase s and the Eq. 8 factors of the last update (as :class:`AMEX`)."""
+        return target_internals(self._last, self._s)
