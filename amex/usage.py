@@ -1,9 +1,9 @@
 """``amex-run --help``: what can be run, with which options, and where the results go.
 
 Everything listed is discovered, not typed in twice: methods from the registry (built-ins and
-plugins; ``schema_*`` are the typed schemas behind them, not choices), robots and experiments
-from ``conf/robot/*.yaml`` and ``conf/experiment/*.yaml`` (each described by the first line of its
-header comment), the options with their defaults and units from the comments of
+plugins; ``schema_*`` are the typed schemas behind them, not choices), robots, experiments and
+studies from ``conf/robot/*.yaml``, ``conf/experiment/*.yaml`` and ``conf/study/*.yaml`` (each
+described by the first line of its header comment), the options with their defaults and units from the comments of
 ``conf/config.yaml``, and the output directories from its ``hydra`` section.
 """
 
@@ -77,6 +77,7 @@ def _pattern(text: str) -> str:
     for hydra_name, name in (("${now:%Y-%m-%d}", "date"), ("${now:%H-%M-%S}", "time"),
                              ("${method.name}", "method")):  # fmt: skip
         text = text.replace(hydra_name, f"<{name}>")
+    text = text.replace("${amex.shard:${shard},${shards}}", "[_shard<I>of<K>]")
     return re.sub(r"\$\{(\w+)\}", r"<\1>", text)
 
 
@@ -103,6 +104,7 @@ def help_text(conf_dir: Path, prog: str = "amex-run") -> str:
         (p.relative_to(experiment_dir).with_suffix("").as_posix(), describe(p))
         for p in sorted(experiment_dir.rglob("*.yaml"))
     ]
+    studies = [(p.stem, describe(p)) for p in sorted((conf_dir / "study").glob("*.yaml"))]
     config_yaml = conf_dir / "config.yaml"
     options, groups = _options(config_yaml)
     composed = yaml.safe_load(config_yaml.read_text())
@@ -119,6 +121,7 @@ def help_text(conf_dir: Path, prog: str = "amex-run") -> str:
         "",
         f"usage: {prog} [KEY=VALUE ...]             one run (e.g. task=3 method=amex episodes=20)",
         f"       {prog} -m KEY=A,B [KEY=VALUE ...]  a sweep: every combination, one job per core",
+        f"       {prog} -m ... shards=K             ... every cell split over K jobs",
         f"       {prog} --cfg job [KEY=VALUE ...]   print the composed configuration",
         f"       {prog} --hydra-help                Hydra's own flags",
         "",
@@ -133,6 +136,9 @@ def help_text(conf_dir: Path, prog: str = "amex-run") -> str:
         "",
         "experiments (experiment=NAME: a named set of overrides, conf/experiment/NAME.yaml):",
         *_table(experiments or [("(none)", "")]),
+        "",
+        "studies (-m study=NAME: a sweep, its cells in conf/study/NAME.yaml; analysis/NAME.py):",
+        *_table(studies or [("(none)", "")]),
         "",
         "main options (default value, unit and meaning):",
         *_table([(f"{k}={v}", c) for k, v, c in options]),
