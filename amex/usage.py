@@ -3,8 +3,8 @@
 Everything listed is discovered, not typed in twice: methods from the registry (built-ins and
 plugins; ``schema_*`` are the typed schemas behind them, not choices), robots, experiments and
 studies from ``conf/robot/*.yaml``, ``conf/experiment/*.yaml`` and ``conf/study/*.yaml`` (each
-described by the first line of its header comment), the options with their defaults and units from the comments of
-``conf/config.yaml``, and the output directories from its ``hydra`` section.
+described by the first line of its header comment), the options with their defaults and units
+from the comments of ``conf/config.yaml``, and the output directories from its ``hydra`` section.
 """
 
 from __future__ import annotations
