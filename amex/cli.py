@@ -134,11 +134,11 @@ def command_line_jobs(overrides: list[str], multirun: bool) -> tuple[list[list[s
         return [task], hydra_overrides
     fixed = [o.input_line for o in parsed if not (o.is_hydra_override() or o.is_sweep_override())]
     try:
-        params, grids, shards = sweep_settings(fixed, hydra_overrides)
+        params, grids, shards, ours = sweep_settings(fixed, hydra_overrides)
     except LaunchError as e:
         raise UsageError(str(e)) from e
     try:
-        return sweep_jobs(params, grids, task, shards), hydra_overrides
+        return sweep_jobs(params, grids, task, shards, expand=ours), hydra_overrides
     except Exception as e:  # a bad value in hydra.sweeper.params or grids
         raise UsageError(f"invalid sweep: {explain(e, overrides)}") from e
 

@@ -180,10 +180,12 @@ def check_launch(
 
 def sweep_settings(
     overrides: list[str], hydra_overrides: list[str]
-) -> tuple[dict[str, Any], dict[str, Any] | None, int]:
+) -> tuple[dict[str, Any], dict[str, Any] | None, int, bool]:
     """``hydra.sweeper.params``, ``hydra.sweeper.grids`` and ``shards`` of a sweep's config.
 
-    Composed from the command line's fixed (non-sweep) ``overrides``, e.g. ``+study=...``.
+    Composed from the command line's fixed (non-sweep) ``overrides``, e.g. ``study=...``; the
+    last value says whether the sweeper is ``hydra/sweeper=amex`` (else: no grids, no shards
+    added, :func:`amex.sweeps.sweep_jobs`).
     """
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
@@ -191,6 +193,7 @@ def sweep_settings(
     from omegaconf import OmegaConf
 
     from amex.cli import CONF_DIR, _register_schemas, explain
+    from amex.sweeps import is_ours
 
     setup_globals()
     _register_schemas()
@@ -208,7 +211,8 @@ def sweep_settings(
         raise LaunchError(explain(e, overrides + hydra_overrides)) from e
     finally:
         GlobalHydra.instance().clear()
-    return sweeper.get("params") or {}, sweeper.get("grids"), shards
+    ours = is_ours(sweeper)
+    return sweeper.get("params") or {}, sweeper.get("grids") if ours else None, shards, ours
 
 
 @contextlib.contextmanager

@@ -111,7 +111,7 @@ class SweepProgress(Callback):
         """Start the polling thread for the sweep directory."""
         from amex.cli import _OUTPUT, STARTED
         from amex.shards import shard_envs
-        from amex.sweeps import job_value, sweep_jobs
+        from amex.sweeps import is_ours, job_value, sweep_jobs
 
         self._started = time.time() - (time.perf_counter() - STARTED), STARTED
         self._stop = threading.Event()
@@ -121,9 +121,13 @@ class SweepProgress(Callback):
         overrides = [str(o) for o in config.hydra.overrides.task]
         sweeper = config.hydra.sweeper
         params: Any = OmegaConf.to_container(sweeper.params) if sweeper.get("params") else {}
-        grids: Any = OmegaConf.to_container(sweeper.grids) if sweeper.get("grids") else None
+        ours = is_ours(sweeper)
+        grids: Any = None
+        if ours and sweeper.get("grids"):
+            grids = OmegaConf.to_container(sweeper.grids)
         total = 0
-        for job in sweep_jobs(params, grids, overrides, int(config.get("shards") or 1)):
+        shards = int(config.get("shards") or 1)
+        for job in sweep_jobs(params, grids, overrides, shards, expand=ours):
             episodes = int(job_value(job, "episodes", config.episodes))
             shards = int(job_value(job, "shards", config.get("shards") or 1))
             total += len(shard_envs(episodes, shards, int(job_value(job, "shard", 0))))

@@ -74,6 +74,7 @@ def sweep_jobs(
     grids: Mapping[str, Mapping[str, Any]] | None,
     arguments: Sequence[str],
     shards: int = 1,
+    expand: bool = True,
 ) -> list[list[str]]:
     """Every job of a sweep, as override lists, in declaration order (module notes).
 
@@ -82,6 +83,8 @@ def sweep_jobs(
         grids: ``hydra.sweeper.grids`` (name -> params of one product), or None.
         arguments: the command line's task overrides (sweeps included, no ``hydra.*``).
         shards: the configured ``shards`` for jobs that do not set it.
+        expand: run every shard of a job with ``shards > 1`` and no ``shard`` (as
+            ``hydra/sweeper=amex`` does; Hydra's basic sweeper does not, nor has it grids).
 
     Raises:
         hydra's OverrideParseException: a value that is not a valid override.
@@ -96,7 +99,7 @@ def sweep_jobs(
     for job in products:
         count = int(job_value(job, "shards", shards))
         expanded = [job]
-        if job_value(job, "shard") is None and count > 1:
+        if expand and job_value(job, "shard") is None and count > 1:
             expanded = [[*job, f"shard={i}"] for i in range(count)]
         for one in expanded:
             key = tuple(sorted(one))
@@ -147,3 +150,8 @@ def job_defaults(config: Any) -> dict[str, Any]:
         "shards": config.get("shards"),
         "outer_hz": config.get("outer_hz"),
     }
+
+
+def is_ours(sweeper: Any) -> bool:
+    """Whether a ``hydra.sweeper`` node is ``hydra/sweeper=amex`` (grids, shards, order)."""
+    return str(sweeper.get("_target_", "")).endswith("amex_sweeper.AmexSweeper")

@@ -46,7 +46,7 @@ def _study_jobs(name):
     from amex.launch import sweep_settings
     from amex.sweeps import sweep_jobs
 
-    params, grids, shards = sweep_settings([f"study={name}"], [])
+    params, grids, shards, _ = sweep_settings([f"study={name}"], [])
     return [load_config([f"study={name}", *job]) for job in sweep_jobs(params, grids, [], shards)]
 
 
