@@ -5,9 +5,11 @@ sum of squared accelerations (log scale); compute time per outer step (log scale
 are box plots (median, quartiles, whiskers at 1.5 IQR) with every environment as a dot; the
 final-time and smoothness panels join the dots of one environment across methods with a faint
 line (the comparison is paired: every method ran the same environments). A black diamond marks
-the paper's mean (Fig. 5) where it reported that task and method. Methods have the colours of
-:mod:`amex.palette`. Written as ``fig5.png`` and ``fig5.pdf`` (all tasks) and ``fig5_task<k>``
-(one task each).
+the paper's mean (Fig. 5) where it reported that task and method; in the smoothness panel a
+black cross marks the mean of the same episodes as the paper computed them
+(``sum_sq_acc_paper``: joint angles rounded to 6 digits), the figure the diamond is comparable
+to. Methods have the colours of :mod:`amex.palette`. Written as ``fig5.png`` and ``fig5.pdf``
+(all tasks) and ``fig5_task<k>`` (one task each).
 
 Run ``python -m analysis.fig5 [RUNS_DIR] [--out DIR]`` or ``make figures`` (which also draws the
 other figures); several benchmark configurations under RUNS_DIR get a set each, in
@@ -111,6 +113,9 @@ def _row(axes: Any, sub: pd.DataFrame, paper: pd.DataFrame, task: int) -> None:
             for x, method in enumerate(methods):
                 value = _paper_value(paper, task, method.split("#")[0], PAPER_COLUMNS[column])
                 ax.plot(x, value, "kD", ms=6, mfc="none", zorder=4)
+                if column == "sum_sq_acc" and "sum_sq_acc_paper" in sub:
+                    computed = sub[sub.method == method].sum_sq_acc_paper.astype(float).mean()
+                    ax.plot(x, computed, "kx", ms=7, mew=1.5, zorder=4)
         ax.set_xticks(range(len(methods)), [method_label(m) for m in methods])
         ax.set_title(f"Task {task}: {title}", fontsize="medium")
         ax.grid(axis="y", alpha=0.3)
@@ -121,10 +126,11 @@ def _legend(fig: Any) -> None:
 
     handles = [
         Line2D([], [], color="k", marker="D", mfc="none", ls="", label="paper's mean (Fig. 5)"),
+        Line2D([], [], color="k", marker="x", ls="", label="our mean as the paper computed it"),
         Line2D([], [], color="k", marker="|", ls="", ms=10, label="95 % Wilson interval"),
         Line2D([], [], color="0.5", alpha=0.5, label="one environment, every method"),
     ]
-    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize="small", frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=4, fontsize="small", frameon=False)
 
 
 def plot_fig5(episodes: pd.DataFrame, out_dir: Path, title: str = "") -> list[Path]:

@@ -32,7 +32,7 @@ import numpy as np
 from amex.errors import ConfigError
 from amex.interfaces import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.methods.cr import CRConfig, CRStatus
+from amex.methods.cr import CRConfig, CRStatus, _resample
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
@@ -104,10 +104,7 @@ class CROriginal(Method):
             raise ConfigError("CR needs the robot model: from_plan(plan, config, dt, robot)")
         c = config if isinstance(config, CRConfig) else CRConfig()
         steps = int(round(plan.duration / dt))
-        u = np.linspace(0.0, len(plan.q) - 1.0, steps + 1)
-        i = np.minimum(np.floor(u).astype(int), len(plan.q) - 2)
-        a = (u - i)[:, None]
-        knots = (1.0 - a) * plan.q[i] + a * plan.q[i + 1]
+        knots = _resample(plan.q, 0.0, dt / plan.dt, steps + 1)
         return cls(
             robot, knots, dt, c.collision_margin, plan.metric, c.max_iterations, c.min_steps
         )
