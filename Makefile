@@ -46,8 +46,8 @@ render-deps: $(STAMP)
 	    --no-install-recommends libegl1 libegl-mesa0 libgl1-mesa-dri; }
 
 lint: $(STAMP)
-	$(BIN)/ruff check amex tests analysis examples hydra_plugins
-	$(BIN)/mypy amex hydra_plugins
+	$(BIN)/ruff check amex tests analysis examples
+	$(BIN)/mypy amex
 
 ## Medians of the inner step, an episode, the reference plan and every method's outer step.
 bench: $(STAMP)
