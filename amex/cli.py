@@ -282,6 +282,7 @@ def _task(cfg: Any) -> None:
     from tqdm.contrib.logging import logging_redirect_tqdm
 
     from amex.launch import job_guard
+    from amex.processes import Interrupted
     from amex.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
@@ -295,8 +296,18 @@ def _task(cfg: Any) -> None:
     quiet = hydra_config.mode == RunMode.MULTIRUN  # the sweep has one bar (SweepProgress)
     _OUTPUT.setdefault("dir", run_dir)
     if quiet:  # no tqdm in sweep workers: its lock is a semaphore, which a killed worker leaks
-        with job_guard(run_dir, multirun=True):
-            summary = run(config, run_dir)
+        try:
+            with job_guard(run_dir, multirun=True):
+                summary = run(config, run_dir)
+        except Interrupted as e:
+            if not os.environ.get("SUBMITIT_EXECUTOR"):
+                raise  # a local worker: the launcher reports the stop
+            # A submitit job (SLURM's SIGTERM on scancel, preemption or requeue): its log ends
+            # with the closing line, and the exit code says it stopped (no result is pickled,
+            # so the launcher never takes the partial run for a finished one).
+            line, code = _closing_line(e)
+            print(line, file=sys.stderr, flush=True)
+            raise SystemExit(code) from None
     else:
         with (
             job_guard(run_dir, multirun=False),

@@ -2,11 +2,15 @@
 
 import csv
 import os
+import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
+import fake_slurm
 import pytest
 
 from amex.errors import ConfigError
@@ -169,3 +173,78 @@ def test_a_sharded_sweep_on_submitit_local_writes_every_shard_and_tabulates(tmp_
     assert [int(r["env"]) for r in _rows(shards)] == list(range(7))
     assert table([str(sweep), "--out", str(tmp_path / "table")]) == 0
     assert "| 1 | dmp | 7 |" in (tmp_path / "table" / "fig5.md").read_text()
+
+
+def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path):
+    """The shipped SLURM config through submitit, scheduled by a local stand-in for SLURM."""
+    from analysis.table import main as table
+
+    state = tmp_path / "slurm"
+    env = fake_slurm.install(tmp_path / "bin", state)
+    env.pop("AMEX_DEBUG", None)
+    sweep = tmp_path / "sweep"
+    args = [
+        "-m",
+        "hydra/launcher=slurm",
+        "hydra.launcher.partition=cpu",
+        "task=1",
+        "method=dmp,amex",
+        "episodes=7",
+        "max_time=1",
+        "shards=3",
+        f"hydra.sweep.dir={sweep}",
+    ]
+    proc = subprocess.run(
+        [AMEX_RUN, *args], cwd=tmp_path, capture_output=True, text=True, env=env, timeout=600
+    )
+    assert proc.returncode == 0, proc.stderr
+    (job,) = fake_slurm.submissions(state)  # one sbatch call for the whole sweep
+    flags = job["flags"]
+    assert flags["array"] == "0-5%6", flags
+    assert flags["cpus-per-task"] == "1" and flags["partition"] == "cpu", flags
+    assert "export OMP_NUM_THREADS=1" in job["script"]
+    dirs = sorted(p.parent.name for p in sweep.glob("*/episodes.csv"))
+    assert dirs == [f"task1_{m}_seed0_shard{i}of3" for m in ("amex", "dmp") for i in range(3)]
+    for method in ("amex", "dmp"):
+        rows = _rows(sorted(sweep.glob(f"task1_{method}_*/episodes.csv")))
+        assert [int(r["env"]) for r in rows] == list(range(7))
+    assert table([str(sweep), "--out", str(tmp_path / "table")]) == 0
+    assert "| 1 | dmp | 7 |" in (tmp_path / "table" / "fig5.md").read_text()
+    assert "sweep " in proc.stderr + proc.stdout and "longest job" in proc.stderr + proc.stdout
+
+
+def test_a_preempted_slurm_task_is_requeued_and_resumes(tmp_path):
+    """SLURM's warning signal (USR2) makes submitit requeue the task; the rerun keeps the rows."""
+    state = tmp_path / "slurm"
+    env = fake_slurm.install(tmp_path / "bin", state)
+    env.pop("AMEX_DEBUG", None)
+    sweep = tmp_path / "sweep"
+    cell = sweep / "task3_cr_seed0"
+    args = ["-m", "hydra/launcher=slurm", "task=3", "method=cr", "episodes=8"]
+    proc = subprocess.Popen(
+        [AMEX_RUN, *args, f"hydra.sweep.dir={sweep}"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while len(_rows([cell / "episodes.csv"]) if (cell / "episodes.csv").exists() else []) < 2:
+            assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+            time.sleep(0.05)
+        (step,) = fake_slurm.steps(state).values()
+        os.kill(step, signal.SIGUSR2)  # what sbatch --signal=USR2@90 sends before a limit
+        out, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 0, err
+    (task,) = {p.stem for p in state.glob("*.state")}
+    assert fake_slurm.attempts(state, task) == 2
+    log = (sweep / ".submitit" / task / f"{task}_0_log.err").read_text()
+    assert "this job is preempted" in log, log
+    assert "Traceback" not in log and "amex-run: stopped by SIGTERM: " in log, log
+    starts = [int(n) for n in re.findall(r"(\d+) recorded earlier", (cell / "run.log").read_text())]
+    assert len(starts) == 2 and starts[0] == 0 and 2 <= starts[1] < 8, starts  # resumed
+    assert [int(r["env"]) for r in _rows([cell / "episodes.csv"])] == list(range(8))
