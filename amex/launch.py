@@ -133,18 +133,16 @@ def check_output_dir(key: str, path: Path) -> None:
             )
 
 
-def check_launch(
-    overrides: list[str], hydra_overrides: list[str], multirun: bool, check_dir: bool = True
-) -> Path:
-    """Compose a job's Hydra config, check its launcher and output directory; return the job's.
+@contextlib.contextmanager
+def composed(overrides: list[str], hydra_overrides: list[str]) -> Iterator[Any]:
+    """The config the command line composes (Hydra's part included), read inside the block.
 
-    For a sweep (``multirun``) that is ``hydra.sweep.dir / hydra.sweep.subdir``. ``check_dir``:
-    check the launcher and the (sweep) directory, once per sweep.
+    Any error Hydra or OmegaConf raise, composing or in the block, becomes one
+    :class:`LaunchError` naming the bad override.
     """
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
     from hydra.core.utils import setup_globals
-    from omegaconf import OmegaConf
 
     from amex.cli import CONF_DIR, explain
 
@@ -157,16 +155,30 @@ def check_launch(
                 overrides=[*overrides, *hydra_overrides],
                 return_hydra_config=True,
             )
+        yield cfg
+    except Exception as e:  # Hydra and OmegaConf raise many types for bad input
+        raise LaunchError(explain(e, overrides + hydra_overrides)) from e
+    finally:
+        GlobalHydra.instance().clear()
+
+
+def check_launch(
+    overrides: list[str], hydra_overrides: list[str], multirun: bool, check_dir: bool = True
+) -> Path:
+    """Compose a job's Hydra config, check its launcher and output directory; return the job's.
+
+    For a sweep (``multirun``) that is ``hydra.sweep.dir / hydra.sweep.subdir``. ``check_dir``:
+    check the launcher and the (sweep) directory, once per sweep.
+    """
+    from omegaconf import OmegaConf
+
+    with composed(overrides, hydra_overrides) as cfg:
         hydra_cfg: Any = OmegaConf.to_container(cfg.hydra, resolve=False)
         key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
         chosen = str(OmegaConf.select(cfg, key) or "")
         directory = Path(chosen)
         subdir = str(OmegaConf.select(cfg, "hydra.sweep.subdir")) if multirun else ""
         job = directory / subdir
-    except Exception as e:  # Hydra and OmegaConf raise many types for bad input
-        raise LaunchError(explain(e, overrides + hydra_overrides)) from e
-    finally:
-        GlobalHydra.instance().clear()
     if not chosen.strip():
         raise LaunchError(f"invalid {key}=''; valid: a directory path (runs/mine, /data/run1, ...)")
     if not check_dir:
@@ -187,30 +199,15 @@ def sweep_settings(
     last value says whether the sweeper is ``hydra/sweeper=amex`` (else: no grids, no shards
     added, :func:`amex.sweeps.sweep_jobs`).
     """
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.core.utils import setup_globals
     from omegaconf import OmegaConf
 
-    from amex.cli import CONF_DIR, _register_schemas, explain
+    from amex.cli import _register_schemas
     from amex.sweeps import is_ours
 
-    setup_globals()
     _register_schemas()
-    GlobalHydra.instance().clear()
-    try:
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            cfg = compose(
-                config_name="config",
-                overrides=[*overrides, *hydra_overrides],
-                return_hydra_config=True,
-            )
+    with composed(overrides, hydra_overrides) as cfg:
         sweeper: Any = OmegaConf.to_container(cfg.hydra.sweeper, resolve=False)
         shards = int(cfg.get("shards") or 1)
-    except Exception as e:  # Hydra and OmegaConf raise many types for bad input
-        raise LaunchError(explain(e, overrides + hydra_overrides)) from e
-    finally:
-        GlobalHydra.instance().clear()
     ours = is_ours(sweeper)
     return sweeper.get("params") or {}, sweeper.get("grids") if ours else None, shards, ours
 
