@@ -10,7 +10,8 @@ included) and the sweep's longest job, e.g.
 ``sweep runs/paper: 12 jobs in 6 min 2 s wall, 11 min 50 s CPU (1.96 cores busy on average),
 longest job 2 min 1 s (task3_cr_seed0)``. The CPU time is that of this process and every process
 it started (:func:`amex.processes.tree_cpu_time`: the workers, reaped or alive), or, when the jobs
-ran elsewhere (SLURM), the sum of the jobs' own CPU times from their ``summary.json``; the
+ran elsewhere (SLURM), the sum of the jobs' own CPU times from their ``summary.json``, said as
+such (their start-up is not in it); the
 longest job is the longest run of this sweep by its ``summary.json`` (:mod:`amex.runner`).
 """
 
@@ -41,6 +42,8 @@ class SweepCost(NamedTuple):
         cpu: CPU time of the sweep [s] (module notes).
         longest: wall time of its longest job [s] (nan without jobs).
         longest_name: that job's directory name.
+        elsewhere: the jobs ran outside this process tree (SLURM): ``cpu`` is the sum of their
+            runs' own CPU times, without their start-up.
     """
 
     jobs: int
@@ -48,6 +51,7 @@ class SweepCost(NamedTuple):
     cpu: float
     longest: float
     longest_name: str
+    elsewhere: bool = False
 
 
 def duration(seconds: float) -> str:
@@ -73,25 +77,33 @@ def job_records(sweep_dir: Path, since: float) -> dict[str, dict[str, Any]]:
     return records
 
 
-def sweep_cost(sweep_dir: Path, started: float, wall: float, local_cpu: float) -> SweepCost:
-    """The cost of a sweep that started at ``started`` (epoch) and took ``wall`` seconds."""
+def sweep_cost(
+    sweep_dir: Path, started: float, wall: float, local_cpu: float, elsewhere: bool = False
+) -> SweepCost:
+    """The cost of a sweep that started at ``started`` (epoch) and took ``wall`` seconds.
+
+    ``local_cpu``: the CPU time of this process tree; ``elsewhere``: the jobs ran on other
+    machines (SLURM), so the CPU time is the sum of theirs instead.
+    """
     records = job_records(sweep_dir, started)
     walls = {name: float(r.get("wall_time", math.nan)) for name, r in records.items()}
     jobs_cpu = sum(float(r.get("cpu_time", 0.0)) for r in records.values())
     known = {n: w for n, w in walls.items() if math.isfinite(w)}
     name = max(known, key=known.__getitem__) if known else ""
-    cpu = max(local_cpu, jobs_cpu)  # jobs elsewhere (SLURM) do not count on this machine
-    return SweepCost(len(records), wall, cpu, known.get(name, math.nan), name)
+    cpu = jobs_cpu if elsewhere else max(local_cpu, jobs_cpu)
+    return SweepCost(len(records), wall, cpu, known.get(name, math.nan), name, elsewhere)
 
 
 def describe(sweep_dir: Path, cost: SweepCost) -> str:
     """The closing line of a sweep (module notes)."""
     busy = cost.cpu / cost.wall if cost.wall > 0 else math.nan
     longest = f"longest job {duration(cost.longest)} ({cost.longest_name})" if cost.jobs else ""
-    return (
-        f"sweep {sweep_dir}: {cost.jobs} jobs in {duration(cost.wall)} wall, "
-        f"{duration(cost.cpu)} CPU ({busy:.2f} cores busy on average)"
-        + (f", {longest}" if longest else "")
+    if cost.elsewhere:
+        cpu = f"{duration(cost.cpu)} CPU in the jobs' runs (elsewhere; their start-up not counted)"
+    else:
+        cpu = f"{duration(cost.cpu)} CPU ({busy:.2f} cores busy on average)"
+    return f"sweep {sweep_dir}: {cost.jobs} jobs in {duration(cost.wall)} wall, {cpu}" + (
+        f", {longest}" if longest else ""
     )
 
 
@@ -165,5 +177,8 @@ class SweepProgress(Callback):
         if self.sweep_dir is None:
             return
         started, tic = self._started  # the command's start: its checks count too
-        cost = sweep_cost(self.sweep_dir, started, time.perf_counter() - tic, tree_cpu_time())
+        launcher = str(OmegaConf.select(config, "hydra.launcher._target_", default=""))
+        elsewhere = launcher.endswith("SlurmLauncher")  # submitit's: the jobs run on the cluster
+        wall = time.perf_counter() - tic
+        cost = sweep_cost(self.sweep_dir, started, wall, tree_cpu_time(), elsewhere)
         print(describe(self.sweep_dir, cost), file=sys.stderr, flush=True)

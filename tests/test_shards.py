@@ -210,7 +210,9 @@ def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path):
         assert [int(r["env"]) for r in rows] == list(range(7))
     assert table([str(sweep), "--out", str(tmp_path / "table")]) == 0
     assert "| 1 | dmp | 7 |" in (tmp_path / "table" / "fig5.md").read_text()
-    assert "sweep " in proc.stderr + proc.stdout and "longest job" in proc.stderr + proc.stdout
+    closing = proc.stderr.strip().splitlines()[-1]
+    assert closing.startswith(f"sweep {sweep}: 6 jobs in "), closing
+    assert "CPU in the jobs' runs (elsewhere" in closing and "longest job" in closing, closing
 
 
 def test_a_preempted_slurm_task_is_requeued_and_resumes(tmp_path):
