@@ -102,7 +102,8 @@ def describe(sweep_dir: Path, cost: SweepCost) -> str:
         cpu = f"{duration(cost.cpu)} CPU in the jobs' runs (elsewhere; their start-up not counted)"
     else:
         cpu = f"{duration(cost.cpu)} CPU ({busy:.2f} cores busy on average)"
-    return f"sweep {sweep_dir}: {cost.jobs} jobs in {duration(cost.wall)} wall, {cpu}" + (
+    jobs = f"{cost.jobs} job" + ("" if cost.jobs == 1 else "s")
+    return f"sweep {sweep_dir}: {jobs} in {duration(cost.wall)} wall, {cpu}" + (
         f", {longest}" if longest else ""
     )
 

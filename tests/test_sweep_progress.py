@@ -52,3 +52,10 @@ def test_durations_read_as_people_write_them():
         "1 h 3 min",
         "-",
     ]
+
+
+def test_one_job_is_one_job(tmp_path):
+    started = time.time()
+    _job(tmp_path, "only", 2.0, 1.9)
+    line = describe(tmp_path, sweep_cost(tmp_path, started, wall=2.5, local_cpu=2.2))
+    assert line.startswith(f"sweep {tmp_path}: 1 job in 2.5 s wall, 2.2 s CPU"), line
