@@ -76,6 +76,12 @@ def attempts(state_dir: Path, task: str) -> int:
     return int(path.read_text()) if path.exists() else 0
 
 
+def shutdown(state_dir: Path) -> None:
+    """Stop every task still running (a test's clean-up, whatever it asserted)."""
+    os.environ["FAKE_SLURM_DIR"] = str(state_dir)
+    _cancel(sorted({p.stem.split("_")[0] for p in state_dir.glob("*.state")}))
+
+
 def _state() -> Path:
     return Path(os.environ["FAKE_SLURM_DIR"])
 

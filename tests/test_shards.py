@@ -175,13 +175,22 @@ def test_a_sharded_sweep_on_submitit_local_writes_every_shard_and_tabulates(tmp_
     assert "| 1 | dmp | 7 |" in (tmp_path / "table" / "fig5.md").read_text()
 
 
-def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path):
-    """The shipped SLURM config through submitit, scheduled by a local stand-in for SLURM."""
-    from analysis.table import main as table
-
+@pytest.fixture
+def slurm(tmp_path, monkeypatch):
+    """The local stand-in for SLURM (``tests/fake_slurm.py``): its state dir and environment."""
     state = tmp_path / "slurm"
     env = fake_slurm.install(tmp_path / "bin", state)
     env.pop("AMEX_DEBUG", None)
+    monkeypatch.setenv("FAKE_SLURM_DIR", str(state))
+    yield state, env
+    fake_slurm.shutdown(state)
+
+
+def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path, slurm):
+    """The shipped SLURM config through submitit, scheduled by a local stand-in for SLURM."""
+    from analysis.table import main as table
+
+    state, env = slurm
     sweep = tmp_path / "sweep"
     args = [
         "-m",
@@ -215,11 +224,9 @@ def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path):
     assert "CPU in the jobs' runs (elsewhere" in closing and "longest job" in closing, closing
 
 
-def test_a_preempted_slurm_task_is_requeued_and_resumes(tmp_path):
+def test_a_preempted_slurm_task_is_requeued_and_resumes(tmp_path, slurm):
     """SLURM's warning signal (USR2) makes submitit requeue the task; the rerun keeps the rows."""
-    state = tmp_path / "slurm"
-    env = fake_slurm.install(tmp_path / "bin", state)
-    env.pop("AMEX_DEBUG", None)
+    state, env = slurm
     sweep = tmp_path / "sweep"
     cell = sweep / "task3_cr_seed0"
     args = ["-m", "hydra/launcher=slurm", "task=3", "method=cr", "episodes=8"]
