@@ -19,8 +19,9 @@ the controller's model, 0.3 N m Coulomb friction, 0.5 N m s/rad viscous damping)
 
 All of these are the runs of one sweep, ``amex-run -m study=pr2_like``
 (``conf/study/pr2_like.yaml``, into ``runs/pr2_like/``, on any launcher, resumable, shardable);
-this module only reads them (:mod:`analysis.study`: a cell's rows are those of its configuration
-hash) and refuses a missing or incomplete cell in one line.
+this module runs no episode: it reads them (:mod:`analysis.study`: a cell's rows are those of its
+configuration hash), refuses a missing or incomplete cell in one line, and computes its
+explanations from the robot model and the cached reference plan (:func:`disturbance`).
 
 Outputs: ``analysis/out/pr2_like.md`` and ``analysis/out/fig6_pr2_like.png``.
 

@@ -20,8 +20,9 @@ every cell and the same goal in every method: all comparisons are paired. Then:
 
 The cells are the runs of a sweep, ``amex-run -m study=robustness`` (``conf/study/robustness.yaml``:
 48 runs of 50 environments into ``runs/robustness/``, on any launcher, resumable, shardable);
-this module only reads them (:mod:`analysis.study`: a cell's rows are those of its configuration
-hash) and refuses a missing or incomplete cell in one line. A cell's configuration equals
+this module runs no episode: it reads them (:mod:`analysis.study`: a cell's rows are those of its
+configuration hash), refuses a missing or incomplete cell in one line, and checks the goals that
+every method missed for reachability with IK (:func:`reach_errors`). A cell's configuration equals
 ``amex-run study=robustness method=M scenario.goal_speed_std=.. perception.noise_std=..
 prediction.enabled=..`` plus the sweep's own command-line overrides. Outputs in
 ``analysis/out/``: ``robustness.md`` (tables), ``robustness.csv`` (one row per cell),

@@ -1,12 +1,13 @@
 """What the study analyses share: finding a study's cells among the runs of its sweep.
 
 A study is a sweep (``conf/study/<name>.yaml``, run by ``amex-run -m study=<name>``); its analysis
-(:mod:`analysis.robustness`, :mod:`analysis.pr2`) only reads the runs. A cell of the report is a
-list of overrides on top of the study; its rows are those whose configuration hash is the cell's
-(:func:`amex.store.config_hash`), wherever they are under the sweep directory and however many
-shards wrote them (:func:`analysis.table.load_runs` merges shards and refuses overlaps and gaps).
-The command-line overrides the sweep ran with (``episodes=...``, ``max_time=...``) are read from
-its ``multirun.yaml``, so a cell's configuration is composed exactly as its run was.
+(:mod:`analysis.robustness`, :mod:`analysis.pr2`) reads the runs and runs no episode. A cell of
+the report is a list of overrides on top of the study; its rows are those whose configuration
+hash is the cell's (:func:`amex.store.config_hash`), wherever they are under the sweep directory
+and however many shards wrote them (:func:`analysis.table.load_runs` merges shards and refuses
+overlaps and gaps). The command-line overrides the sweep ran with (``episodes=...``,
+``max_time=...``) are read from its ``multirun.yaml``, so a cell's configuration is composed
+exactly as its run was.
 """
 
 from __future__ import annotations
