@@ -3,7 +3,10 @@
 * :class:`Interrupted`: SIGINT or SIGTERM turned into an exception (a :class:`KeyboardInterrupt`,
   so joblib aborts a sweep's remaining jobs and kills its workers on the way out), raised in the
   main thread between two Python bytecodes: ``finally`` blocks run, the open episode log is
-  finished, the run directory's lock is released, and the rows written stay.
+  finished, the run directory's lock is released, and the rows written stay. A stop raised while
+  a compiled function (numba's dispatcher, a C extension) was returning reaches Python as a
+  ``SystemError`` ("returned a result with an exception set") caused by it; :func:`signals_raise`
+  re-raises the stop itself (:func:`stop_behind`), ours or submitit's ``SystemExit`` alike.
 * :func:`watch_parent`: a sweep worker (a joblib/loky process, a submitit local job) whose
   launching process dies, even by SIGKILL, notices within half a second that it was re-parented
   and stops itself with SIGTERM (forcibly after ``grace`` seconds).
@@ -41,15 +44,39 @@ def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
     raise Interrupted(signum)
 
 
+def stop_behind(error: BaseException) -> BaseException | None:
+    """The stop that ``error`` was raised from, if any (module notes).
+
+    A stop is a :class:`KeyboardInterrupt` (such as :class:`Interrupted`) or a ``SystemExit``
+    raised by a signal handler (submitit's requeue).
+    """
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt | SystemExit):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
+
+
 @contextlib.contextmanager
 def signals_raise(signums: tuple[int, ...] = STOP_SIGNALS) -> Iterator[None]:
-    """Within the block, ``signums`` raise :class:`Interrupted` (main thread only)."""
+    """Within the block, ``signums`` raise :class:`Interrupted` (main thread only).
+
+    A ``SystemError`` raised from a stop is re-raised as that stop (:func:`stop_behind`).
+    """
     if threading.current_thread() is not threading.main_thread():
         yield
         return
     previous = {s: signal.signal(s, _raise_interrupted) for s in signums}
     try:
         yield
+    except SystemError as error:
+        stop = stop_behind(error)
+        if stop is None:
+            raise
+        raise stop from None
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)

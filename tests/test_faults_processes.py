@@ -17,6 +17,7 @@ import pytest
 from amex.config import RunConfig
 from amex.durable import LockedError, RunLock
 from amex.methods import METHODS
+from amex.processes import Interrupted, signals_raise
 from amex.runner import run
 from amex.store import read_rows
 
@@ -196,3 +197,31 @@ def test_ctrl_c_on_a_single_run_says_how_many_episodes_were_kept(tmp_path):
     _closing_line_is_clean(stderr, "SIGINT")
     kept = len(read_rows(out / "episodes.csv"))
     assert f"{kept} episodes kept in {out}" in stderr
+
+
+def _returned_with_stop_set(stop: BaseException) -> None:
+    """What CPython raises when a compiled function (numba's dispatcher) returns a result while
+    a signal handler it let run raised ``stop``: a SystemError caused by the stop."""
+    try:
+        raise stop
+    except BaseException as e:
+        raise SystemError(
+            "CPUDispatcher(<function near_pairs>) returned a result with an exception set"
+        ) from e
+
+
+@pytest.mark.parametrize("stop", [Interrupted(signal.SIGTERM), SystemExit(-1)], ids=repr)
+def test_a_stop_that_a_compiled_function_wrapped_is_the_stop_again(stop):
+    # Found by the preempted SLURM test on a cold numba cache: the job ended as "SystemError"
+    # (a failed job) instead of stopping (ours: Interrupted; submitit's requeue: SystemExit).
+    with pytest.raises(type(stop)) as info, signals_raise((signal.SIGTERM,)):
+        _returned_with_stop_set(stop)
+    assert info.value is stop
+
+
+def test_a_system_error_that_wraps_no_stop_stays_an_error():
+    with pytest.raises(SystemError, match="no stop"), signals_raise((signal.SIGTERM,)):
+        try:
+            raise ValueError("inner")
+        except ValueError as e:
+            raise SystemError("no stop") from e
