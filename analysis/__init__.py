@@ -1,0 +1,25 @@
+"""Tables, figures and study reports from the runs' ``episodes.csv`` files (and logs)."""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+
+def print_written(
+    prog: str, write: Callable[[], Sequence[Path]], errors: tuple[type[Exception], ...]
+) -> int:
+    """A report's command line: run ``write`` and print each path it wrote.
+
+    Returns the exit code: 0, or 2 after one line ``<prog>: error: ...`` on stderr for the
+    expected ``errors``.
+    """
+    try:
+        written = write()
+    except errors as e:
+        print(f"{prog}: error: {e}", file=sys.stderr)
+        return 2
+    for path in written:
+        print(path)
+    return 0

@@ -19,7 +19,6 @@ other figures); several benchmark configurations under RUNS_DIR get a set each, 
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -182,20 +181,16 @@ def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.fig5 [RUNS] [--out DIR]``."""
     from amex.argparsing import OneLineParser
     from amex.store import StoreError
+    from analysis import print_written
     from analysis.table import HERE, TableError
 
     parser = OneLineParser(prog="make figures", description="Fig. 5 as figures")
     parser.add_argument("runs", nargs="?", default="runs", type=Path)
     parser.add_argument("--out", default=HERE / "out", type=Path)
     args = parser.parse_args(argv)
-    try:
-        written = plot_runs(args.runs, args.out)
-    except (TableError, StoreError) as e:
-        print(f"make figures: error: {e}", file=sys.stderr)
-        return 2
-    for path in written:
-        print(path)
-    return 0
+    return print_written(
+        "make figures", lambda: plot_runs(args.runs, args.out), (TableError, StoreError)
+    )
 
 
 if __name__ == "__main__":

@@ -31,7 +31,6 @@ Usage: ``python -m analysis.pr2 [RUNS] [--out DIR]`` (RUNS: runs/pr2_like).
 from __future__ import annotations
 
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -628,19 +627,17 @@ def write_outputs(study: PR2Study, runs: Path, out_dir: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     from amex.errors import AmexError
+    from analysis import print_written
 
     parser = OneLineParser(prog="python -m analysis.pr2", description=__doc__)
     parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/pr2_like"))
     parser.add_argument("--out", type=Path, default=HERE / "out")
     args = parser.parse_args(argv)
-    try:
-        written = write_outputs(PR2Study(), args.runs, args.out)
-    except AmexError as e:
-        print(f"python -m analysis.pr2: error: {e}", file=sys.stderr)
-        return 2
-    for path in written:
-        print(path)
-    return 0
+    return print_written(
+        "python -m analysis.pr2",
+        lambda: write_outputs(PR2Study(), args.runs, args.out),
+        (AmexError,),
+    )
 
 
 if __name__ == "__main__":

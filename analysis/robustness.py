@@ -36,7 +36,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -549,6 +548,7 @@ def write_outputs(study: Study, runs_dir: Path, out_dir: Path, quick: bool = Fal
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     from amex.errors import AmexError
+    from analysis import print_written
 
     parser = OneLineParser(prog="python -m analysis.robustness", description=__doc__)
     parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/robustness"))
@@ -556,14 +556,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=HERE / "out")
     args = parser.parse_args(argv)
     study = quick_study() if args.quick else Study()
-    try:
-        written = write_outputs(study, args.runs, args.out, quick=args.quick)
-    except AmexError as e:
-        print(f"python -m analysis.robustness: error: {e}", file=sys.stderr)
-        return 2
-    for path in written:
-        print(path)
-    return 0
+    return print_written(
+        "python -m analysis.robustness",
+        lambda: write_outputs(study, args.runs, args.out, quick=args.quick),
+        (AmexError,),
+    )
 
 
 if __name__ == "__main__":
