@@ -3,12 +3,13 @@
 import json
 
 import pytest
+from mcap.reader import SeekingReader
 from mcap.writer import Writer
 
 from amex.config import RunConfig
 from amex.log import read_log
 from amex.log.cli import main
-from amex.log.reader import CorruptLogError
+from amex.log.reader import CorruptLogError, LogError
 from amex.methods.dmp import DMPConfig
 from amex.runner import prepare, run_one
 
@@ -23,13 +24,32 @@ def log_file(tmp_path_factory):
     return path
 
 
+def _chunk_content(path, which: float) -> int:
+    """An offset inside the compressed content of one chunk (by the file's own index).
+
+    ``which`` in [0, 1) picks the chunk; the offset never depends on the logged values, whose
+    last bits (and so the compressed sizes) follow the machine's BLAS kernel.
+    """
+    with open(path, "rb") as f:
+        summary = SeekingReader(f).get_summary()
+    chunks = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    chunk = chunks[min(int(which * len(chunks)), len(chunks) - 1)]
+    return chunk.chunk_start_offset + chunk.chunk_length // 2  # well inside its records
+
+
 def _flipped(src, dst, where: float, count: int = 20):
     data = bytearray(src.read_bytes())
-    start = int(len(data) * where)
+    start = _chunk_content(src, where)
     for i in range(start, start + count):
         data[i] ^= 0xFF
     dst.write_bytes(bytes(data))
     return dst
+
+
+def _content(data):
+    return data.metadata, {
+        topic: [(m.log_time, m.data) for m in messages] for topic, messages in data.messages.items()
+    }
 
 
 def _run(argv, capsys):
@@ -51,6 +71,22 @@ def test_flipped_bytes_inside_a_complete_file_are_corrupt_not_truncated(log_file
     assert damaged.duration == pytest.approx(intact.duration)  # chunks after the damage are read
     code, out, _ = _run(["info", tmp_path / "flipped.mcap"], capsys)
     assert code == 0 and "corrupt file" in out and "truncated" not in out
+
+
+@pytest.mark.parametrize("where", [i / 40 for i in range(40)])
+def test_no_flipped_bytes_pass_as_an_intact_file_with_other_content(log_file, tmp_path, where):
+    """20 bytes flipped anywhere: an error, a file said to be damaged, or the same content."""
+    data = bytearray(log_file.read_bytes())
+    start = int(len(data) * where)
+    for i in range(start, min(start + 20, len(data))):
+        data[i] ^= 0xFF
+    path = tmp_path / "flipped.mcap"
+    path.write_bytes(bytes(data))
+    try:
+        damaged = read_log(path)
+    except LogError:
+        return
+    assert damaged.damage or _content(damaged) == _content(read_log(log_file))
 
 
 def test_a_cut_file_is_truncated_not_corrupt(log_file, tmp_path, capsys):

@@ -1,8 +1,10 @@
 """Reading episode logs back, tolerantly: intact files through the index, cut files chunk by chunk.
 
-:func:`read_log` first tries the ``mcap`` package's indexed (seeking) reader. If that fails, it
-streams the file record by record (:class:`mcap.stream_reader.StreamReader`), checking every
-chunk's CRC on its own, and tells two cases apart:
+:func:`read_log` first reads through the file's index (its summary, checked against its CRC),
+every chunk checked against its own CRC and the data section against the CRC of its DataEnd
+record, so no damaged byte of a chunk passes as intact content. Without a readable summary it
+streams the file record by record (:class:`mcap.stream_reader.StreamReader`), again checking every
+chunk's CRC on its own. Either way it tells two cases apart:
 
 * **truncated**: the file does not end with the MCAP magic, because the writer was killed
   (SIGKILL, power loss) mid-chunk: every record before the cut is kept, i.e. all but the last
@@ -35,7 +37,7 @@ from mcap.writer import CompressionType, Writer
 
 from amex.errors import AmexError
 from amex.log.protobuf import ProtobufSchema
-from amex.log.records import MCAP_MAGIC, RawLog, read_indexed, read_stream
+from amex.log.records import MCAP_MAGIC, IndexedEnd, RawLog, read_indexed, read_stream
 
 
 class LogError(AmexError):
@@ -306,9 +308,12 @@ def read_log(path: Path | str) -> LogData:
     size = _check_file(path)
     try:
         with open(path, "rb") as f:
-            raw = read_indexed(f)
-            if raw is not None:
-                return _decode(raw, path, size, False, "")
+            indexed = read_indexed(f, size)
+            if indexed is not None:
+                raw, end = indexed
+                if not end.damaged and end.data_crc_ok:
+                    return _decode(raw, path, size, False, "")
+                return _damaged(raw, end, path, size)
             f.seek(max(size - len(MCAP_MAGIC), 0))
             complete = f.read(len(MCAP_MAGIC)) == MCAP_MAGIC and size > 2 * len(MCAP_MAGIC)
             raw, stream = read_stream(f)
@@ -334,6 +339,21 @@ def read_log(path: Path | str) -> LogData:
             f"nothing to recover: {path}"
         )
     return _decode(raw, path, size, truncated, note, corrupt)
+
+
+def _damaged(raw: RawLog, end: IndexedEnd, path: Path, size: int) -> LogData:
+    """A complete file whose summary holds but whose data section is damaged: corrupt."""
+    notes = []
+    if end.damaged:
+        notes.append(f"{end.damaged} damaged chunk{'s' * (end.damaged > 1)} skipped")
+    else:
+        notes.append("damaged outside its chunks (data section CRC mismatch)")
+    if end.expected is not None:
+        notes.append(f"{len(raw.messages)} of {end.expected} messages read")
+    note = "; ".join(notes)
+    if not raw.messages:
+        raise CorruptLogError(f"log file is corrupt ({note}), nothing to recover: {path}")
+    return _decode(raw, path, size, False, note, True)
 
 
 def recover(src: Path | str, dst: Path | str) -> LogData:
