@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-viewer render-deps lint bench table figures studies paper ablation ablation-table clean
+.PHONY: install run test test-slow test-kernels test-viewer render-deps lint bench table figures studies paper ablation ablation-table clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,15 @@ run: $(STAMP)
 ## Fast tests (the default suite, < 5 min on 2 cores).
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+## The tests of logs, the episode store and the plan cache again under other BLAS kernels than
+## this machine's: no test may depend on bits that follow the kernel (Intel and AMD differ).
+KERNEL_TESTS := tests/test_log.py tests/test_faults_logs.py tests/test_store.py \
+  tests/test_faults_store.py tests/test_faults_cache.py
+test-kernels: $(STAMP)
+	for kernel in Haswell Prescott; do \
+	  OPENBLAS_CORETYPE=$$kernel $(BIN)/python -m pytest -q $(KERNEL_TESTS) || exit $$?; \
+	done
 
 ## Long end-to-end tests (marked slow).
 test-slow: $(STAMP)
