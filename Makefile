@@ -60,7 +60,7 @@ lint: $(STAMP)
 
 ## Medians of the inner step, an episode, the reference plan and every method's outer step.
 bench: $(STAMP)
-	$(BIN)/python -m amex.bench
+	$(BIN)/python -m amex.app.bench
 	$(BIN)/python -m analysis.bench_amex
 	$(BIN)/python -m analysis.bench_dmp
 

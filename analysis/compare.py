@@ -23,8 +23,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from amex.argparsing import OneLineParser
-from amex.store import StoreError
+from amex.app.argparsing import OneLineParser
+from amex.experiment.store import StoreError
 from analysis.comparisons import claims
 from analysis.table import HERE, TableError, aggregate, benchmarks, load_runs, paper_table
 

@@ -2,7 +2,7 @@
 
 As in the paper: the obstacle is a black ball, the goal is gold (a ring where it starts, a star
 where it ends, its path between), the reference plan (planned without the obstacle) is red; each
-method's executed TCP path has its colour of :mod:`amex.palette` (AMEX blue, DMP green, CR
+method's executed TCP path has its colour of :mod:`amex.core.palette` (AMEX blue, DMP green, CR
 purple), the same in every panel, the render included. A moving obstacle (Task 4) is drawn with its
 path. Each episode is run here and logged to MCAP in a temporary directory, then read back with
 :func:`amex.log.read_log` (or read from the logs given), so the figure shows exactly what
@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from amex.log.plot3d import set_equal_axes_3d
-from amex.palette import (
+from amex.core.palette import (
     GOAL_COLOR,
     OBSTACLE_COLOR,
     REFERENCE_COLOR,
@@ -35,6 +34,7 @@ from amex.palette import (
     method_label,
     rgba,
 )
+from amex.log.plot3d import set_equal_axes_3d
 
 TASK = 3
 ENV = 0  # the Task-3 environment drawn (a goal the obstacle sits right in front of)
@@ -104,8 +104,8 @@ def run_logged(
     ``overrides`` are command-line overrides of every run (``robot=chain7``,
     ``experiment=original``): the figure follows the robot and the scene they choose.
     """
-    from amex.cli import load_config
-    from amex.runner import prepare, run_one
+    from amex.app.cli import load_config
+    from amex.experiment.runner import prepare, run_one
 
     episodes = {}
     for name in methods:

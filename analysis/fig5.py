@@ -8,7 +8,7 @@ line (the comparison is paired: every method ran the same environments). A black
 the paper's mean (Fig. 5) where it reported that task and method; in the smoothness panel a
 black cross marks the mean of the same episodes as the paper computed them
 (``sum_sq_acc_paper``: joint angles rounded to 6 digits), the figure the diamond is comparable
-to. Methods have the colours of :mod:`amex.palette`. Written as ``fig5.png`` and ``fig5.pdf``
+to. Methods have the colours of :mod:`amex.core.palette`. Written as ``fig5.png`` and ``fig5.pdf``
 (all tasks) and ``fig5_task<k>`` (one task each).
 
 Run ``python -m analysis.fig5 [RUNS_DIR] [--out DIR]`` or ``make figures`` (which also draws the
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from amex.palette import method_color, method_label
+from amex.core.palette import method_color, method_label
 
 PANELS = (
     ("success", "success at 0.03 m", None),
@@ -179,8 +179,8 @@ def plot_runs(runs: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.fig5 [RUNS] [--out DIR]``."""
-    from amex.argparsing import OneLineParser
-    from amex.store import StoreError
+    from amex.app.argparsing import OneLineParser
+    from amex.experiment.store import StoreError
     from analysis import print_written
     from analysis.table import HERE, TableError
 

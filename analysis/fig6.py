@@ -32,7 +32,7 @@ def pick_method() -> str:
 
 def pick_env(config, start_tcp: np.ndarray, duration: float) -> int:
     """The environment (of the first CANDIDATES) whose goal moves farthest."""
-    from amex.scenario import make_scenario
+    from amex.sim.scenario import make_scenario
 
     def travel(env: int) -> float:
         s = make_scenario(config.scenario, TASK, SEED, env, start_tcp, duration)
@@ -43,9 +43,9 @@ def pick_env(config, start_tcp: np.ndarray, duration: float) -> int:
 
 def plot_fig6(out_dir: Path | str) -> list[Path]:
     """Run the Task-2 episode, draw ``out_dir/fig6_task2.png``; return ``[its path]``."""
-    from amex.cli import load_config
+    from amex.app.cli import load_config
+    from amex.experiment.runner import prepare, run_one
     from amex.log import read_log
-    from amex.runner import prepare, run_one
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -16,7 +16,7 @@ import os
 import sys
 from pathlib import Path
 
-from amex.argparsing import OneLineParser
+from amex.app.argparsing import OneLineParser
 
 HERE = Path(__file__).resolve().parent
 
@@ -29,7 +29,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=Path, default=Path("runs"), help="default: runs/")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    from amex.store import StoreError
+    from amex.experiment.store import StoreError
     from analysis.fig2 import plot_fig2
     from analysis.fig4 import plot_fig4
     from analysis.fig5 import plot_runs

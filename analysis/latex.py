@@ -13,7 +13,7 @@ import math
 
 import pandas as pd
 
-from amex.palette import method_label
+from amex.core.palette import method_label
 
 HEADER = "% Fig. 5 reproduced by amex (make table); needs \\usepackage{booktabs}\n"
 

@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from amex.argparsing import OneLineParser
+from amex.app.argparsing import OneLineParser
 from analysis.robustness import _markdown, paired_stats
 from analysis.table import aggregate, combined, load_runs, paired, paper_table
 
@@ -128,7 +128,7 @@ FIG6 = {"paper's controller": (), "disturbance observer": OBSERVER}  # label -> 
 
 def pr2_config(task: int, method: str, episodes: int, overrides: Sequence[str] = ()):
     """The validated RunConfig of ``amex-run experiment=pr2_like task=.. method=.. ...``."""
-    from amex.cli import load_config
+    from amex.app.cli import load_config
 
     return load_config(
         [
@@ -234,7 +234,7 @@ def disturbance(overrides: Sequence[str] = ()) -> Disturbance:
     """Compute :class:`Disturbance` for ``pr2_like`` (rigid-body terms from Pinocchio)."""
     import pinocchio as pin
 
-    from amex.runner import prepare
+    from amex.experiment.runner import prepare
 
     config = pr2_config(2, "amex", 1, overrides)
     context = prepare(config)
@@ -271,10 +271,10 @@ def logged_trace(runs: Path, overrides: Sequence[str], label: str) -> Trace:
         StudyError: the run or its log is missing.
     """
     from amex.control.state import RobotState
+    from amex.experiment.runner import prepare
+    from amex.experiment.store import config_hash, read_rows
     from amex.log.reader import LogError, read_log
-    from amex.runner import prepare
-    from amex.scenario import make_scenario
-    from amex.store import config_hash, read_rows
+    from amex.sim.scenario import make_scenario
     from analysis.study import StudyError, cell_config
 
     config = cell_config(
@@ -316,7 +316,7 @@ def logged_trace(runs: Path, overrides: Sequence[str], label: str) -> Trace:
         config.scenario, 2, config.seed, FIG6_ENV, context.plan.y[0, :3], context.plan.duration
     )
     goal = np.array([scenario.goal_at(time) for time in t])
-    from amex.store import parse_result
+    from amex.experiment.store import parse_result
 
     return Trace(label, series, goal, context.plan.y[:, :3].copy(), parse_result(row))
 
@@ -626,7 +626,7 @@ def write_outputs(study: PR2Study, runs: Path, out_dir: Path) -> list[Path]:
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
-    from amex.errors import AmexError
+    from amex.core.errors import AmexError
     from analysis import print_written
 
     parser = OneLineParser(prog="python -m analysis.pr2", description=__doc__)

@@ -2,7 +2,7 @@
 
 Task 2 (moving goal) on the nominal robot (100 Hz, no model mismatch), each method (AMEX, DMP, CR)
 with and without the constant-velocity Kalman prediction of the perceived goal
-(:mod:`amex.perception`), in two sweeps:
+(:mod:`amex.sim.perception`), in two sweeps:
 
 * ``speed``: ``scenario.goal_speed_std`` x {0.5, 1, 2, 3}, the goal seen by a camera with 5 mm
   noise and 50 ms latency (the ``pr2_like`` perception);
@@ -43,8 +43,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from amex.argparsing import OneLineParser
-from amex.palette import method_color, method_label
+from amex.app.argparsing import OneLineParser
+from amex.core.palette import method_color, method_label
 from analysis.table import _markdown, bootstrap_ci, load_runs
 
 HERE = Path(__file__).resolve().parent
@@ -170,7 +170,8 @@ def cell_overrides(cell: Cell) -> list[str]:
 
 
 def cell_config(cell: Cell, overrides: Sequence[str] = ("study=robustness",)):
-    """The validated :class:`~amex.config.RunConfig` of a cell (composed like its run)."""
+    """The validated :class:`~amex.experiment.config.RunConfig` of a cell (composed like its
+    run)."""
     from analysis.study import cell_config as compose
 
     return compose(overrides, cell_overrides(cell))
@@ -378,9 +379,9 @@ def reach_errors(
     cell: Cell, envs: Sequence[int], overrides: Sequence[str] = ("study=robustness",)
 ) -> list[float]:
     """Top-down IK position error [m] of each environment's final goal (0: reachable)."""
-    from amex.ik import solve_ik
-    from amex.runner import prepare
-    from amex.scenario import make_scenario
+    from amex.experiment.runner import prepare
+    from amex.robot.ik import solve_ik
+    from amex.sim.scenario import make_scenario
 
     config = cell_config(cell, overrides)
     context = prepare(config)
@@ -402,7 +403,7 @@ def failures(
     """Which environments fail in the speed sweep (without prediction), per factor and method.
 
     Environments that fail for every method are checked for reachability: the top-down IK
-    position error of the goal's final position (:func:`amex.ik.solve_ik`).
+    position error of the goal's final position (:func:`amex.robot.ik.solve_ik`).
     """
     lines = ["Failed environments (speed sweep, without prediction):\n"]
     sub = cells[(cells.sweep == "speed") & ~cells.prediction]
@@ -547,7 +548,7 @@ def write_outputs(study: Study, runs_dir: Path, out_dir: Path, quick: bool = Fal
 
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
-    from amex.errors import AmexError
+    from amex.core.errors import AmexError
     from analysis import print_written
 
     parser = OneLineParser(prog="python -m analysis.robustness", description=__doc__)

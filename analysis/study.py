@@ -3,7 +3,8 @@
 A study is a sweep (``conf/study/<name>.yaml``, run by ``amex-run -m study=<name>``); its analysis
 (:mod:`analysis.robustness`, :mod:`analysis.pr2`) reads the runs and runs no episode. A cell of
 the report is a list of overrides on top of the study; its rows are those whose configuration
-hash is the cell's (:func:`amex.store.config_hash`), wherever they are under the sweep directory
+hash is the cell's (:func:`amex.experiment.store.config_hash`), wherever they are under the sweep
+directory
 and however many shards wrote them (:func:`analysis.table.load_runs` merges shards and refuses
 overlaps and gaps). The command-line overrides the sweep ran with (``episodes=...``,
 ``max_time=...``) are read from its ``multirun.yaml``, so a cell's configuration is composed
@@ -18,7 +19,7 @@ from typing import Any
 
 import pandas as pd
 
-from amex.errors import AmexError
+from amex.core.errors import AmexError
 
 #: Keys of a sweep's command line that say which runs, not what they compute.
 _NOT_CELL = ("shard", "shards", "log")
@@ -55,8 +56,9 @@ def sweep_overrides(runs: Path, study: str, cell_keys: Sequence[str]) -> list[st
 
 
 def cell_config(base: Sequence[str], cell: Sequence[str]) -> Any:
-    """The validated :class:`~amex.config.RunConfig` of a cell (composed like its run)."""
-    from amex.cli import load_config
+    """The validated :class:`~amex.experiment.config.RunConfig` of a cell (composed like its
+    run)."""
+    from amex.app.cli import load_config
 
     return load_config([*base, *cell])
 
@@ -67,7 +69,7 @@ def cell_rows(episodes: pd.DataFrame, config: Any, name: str, runs: Path) -> pd.
     Raises:
         StudyError: the cell has no runs, or fewer environments than it asks for.
     """
-    from amex.store import config_hash
+    from amex.experiment.store import config_hash
 
     rows = episodes[
         (episodes.config_hash == config_hash(config)) & (episodes.env < config.episodes)

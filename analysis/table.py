@@ -17,7 +17,8 @@ them, with the command-line overrides that set them apart):
   when judged on fewer than :data:`MIN_EPISODES` environments per method), plus one diagnostic:
   smoothness at equal duration (:func:`duration_invariant_smoothness`).
 
-The shards of a cell (``shards=K shard=I``, :mod:`amex.shards`) are merged into one row; shards
+The shards of a cell (``shards=K shard=I``, :mod:`amex.experiment.shards`) are merged into one row;
+shards
 that overlap or leave environments out are refused with one line naming them.
 
 A (task, method) run with two method configurations in one group (e.g. two values of a method
@@ -39,10 +40,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from amex.argparsing import OneLineParser
-from amex.errors import AmexError
-from amex.shards import ShardError, check_cover, read_spec
-from amex.store import HASH_COLUMNS, StoreError, parse_result, read_rows
+from amex.app.argparsing import OneLineParser
+from amex.core.errors import AmexError
+from amex.experiment.shards import ShardError, check_cover, read_spec
+from amex.experiment.store import HASH_COLUMNS, StoreError, parse_result, read_rows
 from analysis.comparisons import (  # noqa: F401 - bootstrap_ci: also analysis.table's API
     METHOD_ORDER,
     MIN_EPISODES,
@@ -122,7 +123,8 @@ def load_runs(root: Path, skip_logged: bool = False) -> pd.DataFrame:
 
 
 def check_shards(df: pd.DataFrame) -> None:
-    """Refuse shards of one configuration that overlap or leave gaps (:mod:`amex.shards`).
+    """Refuse shards of one configuration that overlap or leave gaps
+    (:mod:`amex.experiment.shards`).
 
     ``df`` holds the rows with their ``file``; the shard of each file is its ``shard.json``.
     """
@@ -190,7 +192,7 @@ def _mean_2std(values: pd.Series) -> tuple[float, float]:
 
 
 def aggregate(df: pd.DataFrame) -> pd.DataFrame:
-    """Fig. 5 per (task, method): means and 2 std, our definitions (:mod:`amex.metrics`)."""
+    """Fig. 5 per (task, method): means and 2 std, our definitions (:mod:`amex.sim.metrics`)."""
     records = []
     for (task, method), g in df.groupby(["task", "method"]):
         ft, ft2 = _mean_2std(g.final_time)

@@ -54,8 +54,8 @@ import pinocchio as pin
 
 from amex.control.osc import OperationalSpaceController
 from amex.control.state import RobotState
-from amex.errors import ConfigError
-from amex.interfaces import Command
+from amex.core.errors import ConfigError
+from amex.core.types import Command
 
 DISTURBANCE_KINDS = ("none", "observer", "integral")
 

@@ -31,8 +31,8 @@ from amex.control import kernels
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
-from amex.errors import SolverError
-from amex.interfaces import PD, Command
+from amex.core.errors import SolverError
+from amex.core.types import PD, Command
 from amex.plan.problem import joint_metric
 from amex.robot import RobotModel
 

@@ -5,7 +5,8 @@ transforms are built in :mod:`amex.log.frames`, the other messages in :mod:`amex
 :func:`read_log` reads a log back, recovering the completed chunks of a file cut by SIGKILL, and
 decodes its protobuf channels without the protobuf package (:mod:`amex.log.protobuf`);
 :func:`recover` rewrites the readable part as a valid indexed MCAP file. ``amex-log``
-(:mod:`amex.log.cli`) shows, plots, exports and recovers logs, serves them to Foxglove in a browser
+(:mod:`amex.app.log_cli`) shows, plots, exports and recovers logs, serves them to Foxglove in a
+browser
 (:mod:`amex.log.serve`, with the robot from :mod:`amex.log.urdf` and a layout from
 :mod:`amex.log.layout`) and films them (:mod:`amex.log.video`, :mod:`amex.log.render`).
 """

@@ -25,7 +25,7 @@ from foxglove.messages import (
 )
 
 from amex.log.frames import IDENTITY, WORLD_FRAME, vec
-from amex.metrics import EpisodeResult
+from amex.sim.metrics import EpisodeResult
 
 NUM = "%.9g"  # JSON number format of the per-step channels (9 significant digits)
 GOAL_COLOR = Color(r=0.1, g=0.75, b=0.2, a=0.35)

@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from amex.errors import AmexError
+from amex.core.errors import AmexError
 from amex.log.protobuf import ProtobufSchema
 from amex.log.records import MCAP_MAGIC, IndexedEnd, RawLog, read_indexed, read_stream
 

@@ -3,7 +3,7 @@
 Each frame is a MuJoCo offscreen render (:mod:`amex.log.render`) of the logged arm at that instant
 of simulation time, with the goal (gold: the 0.03 m success sphere and its path so far), the
 obstacles (black spheres; a moving obstacle's whole path as a thin line), the reference plan (red)
-and the executed TCP path so far, in the method's colour (:mod:`amex.palette`). The caption
+and the executed TCP path so far, in the method's colour (:mod:`amex.core.palette`). The caption
 gives the method, the time and the method's phase (AMEX s, DMP x, the tracked index), and at the
 end the outcome. Episodes that ended earlier than the longest one hold their last frame. Frames
 are encoded as H.264 (yuv420p, plays everywhere) by the ffmpeg that imageio-ffmpeg ships.
@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from amex.core.palette import GOAL_COLOR, OBSTACLE_COLOR, REFERENCE_COLOR, method_color, rgba
+from amex.core.palette import method_label as label_of
 from amex.log.reader import LogData, LogError, read_log
 from amex.log.render import (
     SceneDrawer,
@@ -29,9 +31,7 @@ from amex.log.render import (
     gl_context,
     joint_addresses,
 )
-from amex.palette import GOAL_COLOR, OBSTACLE_COLOR, REFERENCE_COLOR, method_color, rgba
-from amex.palette import method_label as label_of
-from amex.scenario import Scenario
+from amex.sim.scenario import Scenario
 
 PHASE_NAMES = {"s": "phase s", "phase": "phase x", "index": "index"}  # as the layout's plot
 SUCCESS_RADIUS = 0.03  # [m] the goal sphere drawn (the paper's success radius)

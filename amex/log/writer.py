@@ -72,11 +72,11 @@ from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
 from amex.log.reader import LogError, LogExistsError
 
 if TYPE_CHECKING:
-    from amex.episode import StepRecord
-    from amex.metrics import EpisodeResult
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
-    from amex.scenario import Scenario
+    from amex.sim.episode import StepRecord
+    from amex.sim.metrics import EpisodeResult
+    from amex.sim.scenario import Scenario
 
 CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can lose
 PART_SUFFIX = ".part"
@@ -105,9 +105,9 @@ def set_aside(path: Path) -> Path:
 
 
 class EpisodeLogger:
-    """Recorder (see :class:`amex.episode.Recorder`) writing one episode as an MCAP file.
+    """Recorder (see :class:`amex.sim.episode.Recorder`) writing one episode as an MCAP file.
 
-    Use as a context manager around :func:`amex.episode.run_episode`; the file appears at
+    Use as a context manager around :func:`amex.sim.episode.run_episode`; the file appears at
     ``path`` when the context exits (or on SIGTERM), and ``<path>.part`` holds it until then.
 
     Args:

@@ -16,15 +16,15 @@ from __future__ import annotations
 import warnings
 from importlib.metadata import entry_points
 
-from amex.errors import ConfigError
+from amex.core.errors import ConfigError
 from amex.methods.amex import AMEX, AMEXConfig
-from amex.methods.amex_original import AMEXOriginal
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.cr import CR, CRConfig
-from amex.methods.cr_original import CROriginal
 from amex.methods.dmp import DMP, DMPConfig
-from amex.methods.dmp_original import DMPOriginal
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
+from amex.methods.original.amex import AMEXOriginal
+from amex.methods.original.cr import CROriginal
+from amex.methods.original.dmp import DMPOriginal
 from amex.methods.track import Track, TrackConfig
 
 METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}

@@ -82,8 +82,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from amex.errors import ConfigError
-from amex.interfaces import PD, Command
+from amex.core.errors import ConfigError
+from amex.core.types import PD, Command
 from amex.methods.base import Method, MethodConfig, Observation, require_finite
 from amex.plan.spline import QuadraticBSpline, WarpedSpline, max_sample_error
 

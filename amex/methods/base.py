@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from amex.errors import InputError
-from amex.interfaces import PD, Command
+from amex.core.errors import InputError
+from amex.core.types import PD, Command
 
 if TYPE_CHECKING:  # methods stay importable without the simulator stack
     from amex.plan.reference import ReferencePlan

@@ -66,10 +66,10 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from amex.errors import ConfigError
-from amex.interfaces import Command
+from amex.core.errors import ConfigError
+from amex.core.scaling import scaled
+from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.scaling import scaled
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
     from amex.plan.optimizer import KnotFrames
@@ -93,7 +93,7 @@ class CRConfig(MethodConfig):
         final_axis_velocity: weight of the final TCP z-axis rate [s^2] (original 1e3).
         collision: weight of the collision proxy term (original 1; here 10).
         collision_margin: distance at which the collision term starts [m] (original 0.1 m; a
-            length in original units, :mod:`amex.scaling`).
+            length in original units, :mod:`amex.core.scaling`).
         knot_dt: knot spacing of the replanning horizon [s] (the reference's 0.01 s).
         max_iterations: Gauss-Newton iterations per step, "until converged, capped" (original
             20).

@@ -44,10 +44,10 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from scipy.linalg import expm
 
-from amex.errors import ConfigError
-from amex.interfaces import PD, Command
+from amex.core.errors import ConfigError
+from amex.core.scaling import scaled
+from amex.core.types import PD, Command
 from amex.methods.base import Method, MethodConfig, Observation, require_finite
-from amex.scaling import scaled
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
     from amex.plan.reference import ReferencePlan
@@ -79,7 +79,8 @@ class DMPConfig(MethodConfig):
             (A = g - y0 of the current goal).
         min_amplitude: floor of |A| [m] (axis components: [-]); smaller trained amplitudes are
             floored and, in goal mode, not rescaled. A length in original units
-            (:mod:`amex.scaling`): 0.25 m is 5 cm on the Panda's scene (scale 0.2), which bounds
+            (:mod:`amex.core.scaling`): 0.25 m is 5 cm on the Panda's scene (scale 0.2), which
+            bounds
             the goal-mode shape scaling to 20 per metre of goal offset.
         basis_overlap: activation of a basis at the next centre [-].
         quad_step: longest quadrature sub-interval of an integration step [s].

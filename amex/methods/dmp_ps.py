@@ -8,11 +8,11 @@ from typing import Any
 
 import numpy as np
 
-from amex.errors import ConfigError
-from amex.interfaces import Command
+from amex.core.errors import ConfigError
+from amex.core.scaling import scaled
+from amex.core.types import Command
 from amex.methods.base import Observation, require_finite
 from amex.methods.dmp import DMP, DMPConfig, DMPTarget
-from amex.scaling import scaled
 
 
 @dataclass
@@ -20,7 +20,8 @@ class DMPPSConfig(DMPConfig):
     """DMP with phase stopping (the paper's Eq. 2).
 
     Attributes:
-        beta_ps: phase-stopping gain [1/m^2], in original units (:mod:`amex.scaling`: it carries
+        beta_ps: phase-stopping gain [1/m^2], in original units (:mod:`amex.core.scaling`: it
+            carries
             scale^-2). The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)`` of its speed: 40 on the
             original scene is 1e3 on the Panda's (scale 0.2), where a 1 cm tracking error slows it
             by 9 %, 3 cm halves it, 10 cm divides it by 11, while the sub-millimetre lag of free

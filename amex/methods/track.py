@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from amex.interfaces import PD, Command
+from amex.core.types import PD, Command
 from amex.methods.base import Method, MethodConfig, Observation, require_finite
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method

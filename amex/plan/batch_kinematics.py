@@ -17,7 +17,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from amex.errors import ConfigError
+from amex.core.errors import ConfigError
 from amex.plan.kinematics_kernels import (
     capsule_sphere_distances,
     forward_frames,

@@ -3,7 +3,7 @@
 The cache key is a SHA-256 of everything the plan depends on: the robot (its cleaned
 description, :attr:`~amex.robot.RobotModel.fingerprint`), the start
 configuration, the goal, the plan settings and :data:`PLAN_FORMAT` (bumped when the optimizer's
-mathematics change). Files are written atomically (:func:`amex.durable.replace_durably`), so
+mathematics change). Files are written atomically (:func:`amex.core.durable.replace_durably`), so
 parallel workers can share the cache. A cached file is used only if it holds a finite plan of the
 configured shape, sample period and start; a truncated, garbled or mismatched file is solved
 again and replaced. A cache that cannot be written (read-only, or its path is a file) costs one
@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from amex.durable import WriteError, replace_durably
-from amex.paths import cache_dir
+from amex.core.durable import WriteError, replace_durably
+from amex.core.paths import cache_dir
 from amex.plan.optimizer import (
     TrajectoryCosts,
     TrajectoryProblem,

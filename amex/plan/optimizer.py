@@ -39,7 +39,7 @@ from scipy.linalg import LinAlgError, solveh_banded
 from scipy.linalg.lapack import dpbsv as _dpbsv
 
 from amex.control.state import skew
-from amex.errors import ConfigError, SolverError
+from amex.core.errors import ConfigError, SolverError
 from amex.plan.batch_kinematics import (
     BatchKinematics,
     BatchPoses,

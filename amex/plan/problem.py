@@ -13,7 +13,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from amex.errors import ConfigError, SolverError
+from amex.core.errors import ConfigError, SolverError
 
 METRICS = ("identity", "original")
 VELOCITY_SPACES = ("joint", "tcp")

@@ -38,7 +38,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from amex.errors import ConfigError
+from amex.core.errors import ConfigError
 
 
 class SplinePoint(NamedTuple):

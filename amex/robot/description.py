@@ -22,8 +22,8 @@ from dataclasses import dataclass, field
 from functools import cache
 from pathlib import Path
 
-from amex.errors import ConfigError
-from amex.paths import cache_dir
+from amex.core.errors import ConfigError
+from amex.core.paths import cache_dir
 
 #: A URDF inside the installed example-robot-data package: ``example-robot-data:<path>``.
 ERD_PREFIX = "example-robot-data:"

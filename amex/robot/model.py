@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from amex.errors import ConfigError
+from amex.core.errors import ConfigError
 from amex.robot.capsules import Capsule, fit_capsules, merge_primitives
 from amex.robot.description import RobotDescription, urdf_joints
 

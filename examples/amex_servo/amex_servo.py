@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from amex.interfaces import Command
+from amex.core.types import Command
 from amex.methods import Method, MethodConfig, Observation
 
 

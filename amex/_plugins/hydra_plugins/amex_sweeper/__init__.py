@@ -1,1 +1,1 @@
-"""``hydra/sweeper=amex``: amex-run's sweeper (:mod:`amex.sweeps`), a Hydra plugin."""
+"""``hydra/sweeper=amex``: amex-run's sweeper (:mod:`amex.app.sweeps`), a Hydra plugin."""

@@ -1,8 +1,9 @@
 """``hydra/sweeper=amex``: Hydra's basic sweeper plus grids, shards and longest-first order.
 
-The jobs are those of :func:`amex.sweeps.sweep_jobs` (the params' and the command line's product,
+The jobs are those of :func:`amex.app.sweeps.sweep_jobs` (the params' and the command line's
+product,
 one product per grid of ``hydra.sweeper.grids``, every shard of a job with ``shards > 1``),
-launched longest first (:func:`amex.sweeps.order_jobs`; ``hydra.sweeper.order=given`` keeps the
+launched longest first (:func:`amex.app.sweeps.order_jobs`; ``hydra.sweeper.order=given`` keeps the
 declaration order) in one batch, so a SLURM launcher submits the whole sweep as one job array.
 Hydra imports this module when it looks for plugins (outside ``sys.modules``, hence no
 ``from __future__ import annotations``): it stays light and imports amex lazily.
@@ -51,7 +52,7 @@ class AmexSweeper(BasicSweeper):
 
     def sweep(self, arguments: list[str]) -> Any:
         """Launch every job (module notes); return the launcher's results per batch."""
-        from amex.sweeps import job_defaults, order_jobs, sweep_jobs
+        from amex.app.sweeps import job_defaults, order_jobs, sweep_jobs
 
         assert self.config is not None and self.launcher is not None
         params: Any = OmegaConf.to_container(OmegaConf.create(self.params or {}))

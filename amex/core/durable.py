@@ -1,0 +1,225 @@
+"""The one write path for files a run must not lose or tear: appends, replacements, new files.
+
+Every write goes through :func:`write_all`, which repeats ``os.write`` until the OS has taken
+every byte and raises :class:`WriteError` when it takes none or fails (a full disk, a file-size
+limit, an I/O error). Built on it:
+
+* :func:`append_durably`: one record appended to a file and fsynced; when the write or the fsync
+  fails the file is cut back to its length before, so it never holds a torn record.
+* :func:`replace_durably`: a whole file written next to the target, fsynced, then renamed over it;
+  on failure the target is left as it was and the temporary file removed.
+* :func:`create_new`: like :func:`replace_durably`, but an existing file is never overwritten.
+
+:class:`RunLock` is the run directory's lock: an ``flock`` held while a run writes, which the
+kernel releases when the process ends however it ends, so a crash cannot leave it stuck.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import fcntl
+import os
+import socket
+import time
+from pathlib import Path
+
+from amex.core.errors import AmexError
+
+LOCK_NAME = ".amex-run.lock"
+
+
+class WriteError(AmexError):
+    """A file could not be written completely; the message names the file and the reason."""
+
+    def __init__(self, path: Path | str, reason: str) -> None:
+        super().__init__(f"cannot write {path}: {reason}")
+        self.path = Path(path)
+        self.reason = reason
+
+
+class LockedError(AmexError):
+    """Another process holds the run directory's lock."""
+
+
+def _reason(error: OSError) -> str:
+    return error.strerror or str(error)
+
+
+def write_all(fd: int, data: bytes, path: Path | str) -> None:
+    """Write all of ``data`` to ``fd``, continuing after short writes.
+
+    Raises:
+        WriteError: the OS accepted no bytes (a full disk) or reported an error.
+    """
+    view = memoryview(data)
+    while len(view):
+        try:
+            n = os.write(fd, view)
+        except OSError as e:
+            raise WriteError(path, _reason(e)) from e
+        if n <= 0:
+            raise WriteError(path, f"the disk took no more bytes ({len(view)} left unwritten)")
+        view = view[n:]
+
+
+def _fsync(fd: int, path: Path | str) -> None:
+    try:
+        os.fsync(fd)
+    except OSError as e:
+        raise WriteError(path, _reason(e)) from e
+
+
+def append_durably(path: Path, data: bytes) -> None:
+    """Append ``data`` to the existing file ``path`` and fsync; all of it or none of it.
+
+    Raises:
+        WriteError: the record could not be written; the file is cut back to its old length.
+    """
+    try:
+        fd = os.open(path, os.O_WRONLY | os.O_APPEND)
+    except OSError as e:
+        raise WriteError(path, _reason(e)) from e
+    try:
+        start = os.fstat(fd).st_size
+        try:
+            write_all(fd, data, path)
+            _fsync(fd, path)
+        except WriteError:
+            with contextlib.suppress(OSError):  # else the reader drops the torn last line
+                os.ftruncate(fd, start)
+                os.fsync(fd)
+            raise
+    finally:
+        os.close(fd)
+
+
+def _write_temporary(path: Path, data: bytes) -> Path:
+    """``data`` in a new fsynced file beside ``path``; removed again if anything fails."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    except OSError as e:
+        raise WriteError(path, _reason(e)) from e
+    try:
+        write_all(fd, data, path)
+        _fsync(fd, path)
+    except WriteError:
+        os.close(fd)
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+    os.close(fd)
+    return tmp
+
+
+def _sync_directory(directory: Path) -> None:
+    with contextlib.suppress(OSError):  # not every file system can fsync a directory
+        fd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+
+
+def replace_durably(path: Path, data: bytes) -> None:
+    """Write ``data`` as the new content of ``path``, atomically (temporary file, rename).
+
+    Raises:
+        WriteError: nothing was replaced; ``path`` keeps its old content (or stays absent).
+    """
+    tmp = _write_temporary(path, data)
+    try:
+        os.replace(tmp, path)
+    except OSError as e:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise WriteError(path, _reason(e)) from e
+    _sync_directory(path.parent)
+
+
+def create_new(path: Path, data: bytes) -> None:
+    """Write ``data`` as the new file ``path``, atomically; an existing file is never replaced.
+
+    Raises:
+        FileExistsError: ``path`` exists (checked atomically, at the final link).
+        WriteError: the file could not be written; nothing is left behind.
+    """
+    if path.exists() or path.is_symlink():
+        raise FileExistsError(errno.EEXIST, "file exists, not overwriting it", str(path))
+    tmp = _write_temporary(path, data)
+    try:
+        os.link(tmp, path)  # fails if path appeared meanwhile
+    except FileExistsError:
+        raise FileExistsError(errno.EEXIST, "file exists, not overwriting it", str(path)) from None
+    except OSError as e:
+        raise WriteError(path, _reason(e)) from e
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    _sync_directory(path.parent)
+
+
+class RunLock:
+    """Exclusive lock of a run directory while a run writes into it (``flock``).
+
+    The lock file ``.amex-run.lock`` stays; the lock itself dies with its process, however the
+    process ends (exit, exception, SIGKILL), so no stale lock is ever left to clear by hand.
+
+    Args:
+        directory: the run directory (must exist).
+    """
+
+    def __init__(self, directory: Path) -> None:
+        self.path = directory / LOCK_NAME
+        self._fd: int | None = None
+
+    def acquire(self) -> RunLock:
+        """Take the lock, or raise :class:`LockedError` naming its holder (no waiting)."""
+        try:
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as e:
+            raise WriteError(self.path, _reason(e)) from e
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip()
+            os.close(fd)
+            raise LockedError(
+                f"another amex-run is writing into {self.path.parent} ({holder or 'unknown'}); "
+                "wait for it to finish or choose another hydra.run.dir / hydra.sweep.dir"
+            ) from None
+        stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+        with contextlib.suppress(OSError):  # who holds it is for messages only (a full disk)
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()} since {stamp}".encode(), 0)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        """Give the lock up (idempotent)."""
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self) -> RunLock:
+        return self.acquire()
+
+    def __exit__(self, *exc: object) -> None:
+        self.release()
+
+    @staticmethod
+    def holder(directory: Path) -> str | None:
+        """Who holds the lock of ``directory`` now (None if nobody); never creates anything."""
+        path = directory / LOCK_NAME
+        try:
+            fd = os.open(path, os.O_RDONLY)
+        except OSError:
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return os.pread(fd, 200, 0).decode(errors="replace").strip() or "unknown"
+        finally:
+            os.close(fd)
+        return None

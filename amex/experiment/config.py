@@ -1,0 +1,235 @@
+"""Typed configuration of a run, and its validation.
+
+These are plain dataclasses: the CLI registers them in Hydra's ConfigStore (only :mod:`amex.app.cli`
+imports Hydra) and converts the composed config back into them, so library code and users'
+scripts never need Hydra. Every physical field states its unit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from amex.control.disturbance import DisturbanceConfig
+from amex.control.osc import PD, OSCGains
+from amex.core.errors import ConfigError
+from amex.core.scaling import scale_power, scale_value, scaled, to_scene_units
+from amex.core.schema import check_tree, limits
+from amex.experiment.shards import ShardSpec, shard_envs
+from amex.methods import IMPLEMENTATIONS, METHODS, MethodConfig
+from amex.plan.problem import METRICS
+from amex.plan.reference import PlanConfig
+from amex.robot import RobotConfig, load_robot
+from amex.sim.episode import LoopConfig, MismatchConfig
+from amex.sim.perception import PerceptionConfig, PredictionConfig
+from amex.sim.scenario import TASKS, ScenarioConfig
+
+LOG_LEVELS = ("none", "full")
+MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
+SIMULATIONS = ("dynamic", "kinematic")
+
+
+@dataclass
+class ControllerConfig:
+    """Inner-controller terms shared by all methods (the methods set their own pos/dir gains).
+
+    Attributes:
+        col: collision task gains (original: Kp 2500, Kd 100).
+        joint: joint-target task gains, used by CR's joint commands (original: 100, 100).
+        damping: joint damping task (original: Kd 10 at precision 0.1; we weight it 0.01).
+        margin: collision margin (original 0.1 m; scene units, :mod:`amex.core.scaling`) [m].
+        reg: regularizer H = reg * I of Eq. 4 [-] (original 1e-3 with the metric below).
+        metric: ``identity`` or ``original``: H = reg * diag(sqrt(n), ..., 1), the authors'.
+        drift: subtract the TCP tasks' drift J_dot v (the original did not).
+        joint_only: joint-target commands (CR) are tracked by the joint task alone, without the
+            damping and collision tasks (the authors' CR controller).
+        disturbance: compensation of unmodelled torques: ``none`` (the paper's controller),
+            ``observer`` (generalized-momentum observer) or ``integral`` (integral action on the
+            task errors); :mod:`amex.control.disturbance`. Dynamic simulation only.
+        observer_bandwidth: the observer's gain K_O, bandwidth of its estimate [1/s].
+        observer_limit: clamp of the observer's estimate, fraction of the torque limits [-].
+        integral_gain: K_I of the integral action [1/s].
+        integral_limit: bound of the integral's task acceleration [m/s^2, rad/s^2].
+    """
+
+    col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
+    joint: PD = field(default_factory=lambda: PD(100.0, 100.0, 1.0))
+    damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
+    margin: float = field(default=0.1, metadata=scaled(1))
+    reg: float = 1e-6
+    metric: str = "identity"
+    drift: bool = True
+    joint_only: bool = False
+    disturbance: str = "none"
+    observer_bandwidth: float = field(default=20.0, metadata=limits(gt=0))
+    observer_limit: float = field(default=1.0, metadata=limits(gt=0, le=1))
+    integral_gain: float = field(default=10.0, metadata=limits(gt=0))
+    integral_limit: float = field(default=50.0, metadata=limits(gt=0))
+
+    def compensation(self) -> DisturbanceConfig:
+        """The inner controller's disturbance compensation (:mod:`amex.control.disturbance`)."""
+        return DisturbanceConfig(
+            kind=self.disturbance,
+            bandwidth=float(self.observer_bandwidth),
+            limit=float(self.observer_limit),
+            integral_gain=float(self.integral_gain),
+            integral_limit=float(self.integral_limit),
+        )
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for an unknown ``disturbance`` (run by ``check_tree``)."""
+        self.compensation().validate()
+
+
+@dataclass
+class RunConfig:
+    """One run: ``episodes`` environments of ``task`` executed with ``method``.
+
+    Attributes:
+        task: benchmark task, 0-4.
+        method: the method and its parameters (Hydra group ``method``).
+        episodes: number of environments (paper: 150).
+        seed: seed of the scene sampling (>= 0).
+        outer_hz: method update rate [Hz].
+        inner_hz: controller and simulation rate [Hz], an integer multiple of ``outer_hz``.
+        max_time: episode time limit [s].
+        success_radius: final TCP-goal distance counted as success [m] (absolute, as the paper).
+        stop_radius: the episode stops within this distance of the goal; the paper's 0.03 m
+            (scene units, :mod:`amex.core.scaling`) [m].
+        sim: ``dynamic`` (MuJoCo integrates the torques of the inner controller) or
+            ``kinematic`` (the controller's joint accelerations are integrated directly, as the
+            authors' code did; :mod:`amex.sim.episode`).
+        state_lag: methods and the stop rule see the task state one inner step late, as in the
+            authors' loop (:mod:`amex.sim.episode`).
+        implementation: ``ours`` or ``original``: amex, dmp and cr as the authors' harness ran
+            them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
+        log: ``none`` or ``full`` (one MCAP file per episode).
+        shards: split the ``episodes`` environments over this many runs
+        (:mod:`amex.experiment.shards`).
+        shard: which of them this run executes, ``0 <= shard < shards``: the environments
+            ``shard, shard + shards, ...``.
+        perception: goal noise and latency (default exact).
+        prediction: constant-velocity Kalman prediction of the goal (default off).
+        mismatch: simulated arm versus the controller's model (default identical).
+    """
+
+    task: int = 0
+    method: Any = field(default_factory=MethodConfig)
+    robot: RobotConfig = field(default_factory=RobotConfig)
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    plan: PlanConfig = field(default_factory=PlanConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    perception: PerceptionConfig = field(default_factory=PerceptionConfig)
+    prediction: PredictionConfig = field(default_factory=PredictionConfig)
+    mismatch: MismatchConfig = field(default_factory=MismatchConfig)
+    episodes: int = 150
+    seed: int = 0
+    outer_hz: float = 100.0
+    inner_hz: float = 1000.0
+    max_time: float = 10.0
+    success_radius: float = 0.03
+    stop_radius: float = field(default=0.03, metadata=scaled(1))
+    sim: str = "dynamic"
+    state_lag: bool = False
+    implementation: str = "ours"
+    log: str = "none"
+    shards: int = 1
+    shard: int = 0
+
+    @property
+    def envs(self) -> range:
+        """The environments this run executes (all ``episodes`` unless sharded)."""
+        return shard_envs(self.episodes, self.shards, self.shard)
+
+    @property
+    def loop(self) -> LoopConfig:
+        """The episode loop's settings."""
+        scale = float(self.scenario.scale)
+        stop = scale_value(self.stop_radius, scale, scale_power(RunConfig, "stop_radius"))
+        return LoopConfig(
+            outer_hz=float(self.outer_hz),
+            inner_hz=float(self.inner_hz),
+            max_time=float(self.max_time),
+            success_radius=float(self.success_radius),
+            stop_radius=stop,
+            kinematic=self.sim == "kinematic",
+            state_lag=bool(self.state_lag),
+        )
+
+    def method_config(self) -> Any:
+        """The method's configuration in the scene's units (:mod:`amex.core.scaling`)."""
+        return to_scene_units(self.method, float(self.scenario.scale))
+
+    def gains(self) -> OSCGains:
+        """Inner-controller gains: the method's task gains plus the shared terms."""
+        c = to_scene_units(self.controller, float(self.scenario.scale))
+        return OSCGains(
+            pos=self.method.pos,
+            dir=self.method.dir,
+            col=c.col,
+            joint=c.joint,
+            damping=c.damping,
+            margin=c.margin,
+            reg=c.reg,
+            metric=c.metric,
+            drift=c.drift,
+            joint_only=c.joint_only,
+        )
+
+
+def validate(config: RunConfig) -> None:
+    """Raise :class:`ConfigError` naming the first invalid value and the valid choices.
+
+    Besides the checks below, :func:`amex.core.schema.check_tree` checks every field of the tree: no
+    non-finite number anywhere, no negative scalar unless the field allows it, no unknown key, and
+    each node's own ``validate()``. Whether the method can be built from its parameters is
+    checked by :func:`amex.experiment.runner.preflight`.
+    """
+    if isinstance(config.task, bool) or config.task not in TASKS:
+        raise ConfigError.invalid("task", config.task, TASKS)
+    name = getattr(config.method, "name", None)
+    if name not in METHODS:
+        raise ConfigError.invalid("method", name, sorted(METHODS))
+    check_tree(config)
+    if config.episodes < 1:
+        raise ConfigError.invalid("episodes", config.episodes, "an integer >= 1")
+    ShardSpec(config.shard, config.shards, config.episodes)  # raises for a bad split
+    if config.log not in LOG_LEVELS:
+        raise ConfigError.invalid("log", config.log, LOG_LEVELS)
+    if config.implementation not in IMPLEMENTATIONS:
+        raise ConfigError.invalid("implementation", config.implementation, IMPLEMENTATIONS)
+    metrics = {"plan.metric": config.plan.metric, "controller.metric": config.controller.metric}
+    for key, value in metrics.items():
+        if value not in METRICS:
+            raise ConfigError.invalid(key, value, METRICS)
+    if config.sim not in SIMULATIONS:
+        raise ConfigError.invalid("sim", config.sim, SIMULATIONS)
+    if config.sim == "kinematic" and config.mismatch != type(config.mismatch)():
+        raise ConfigError(
+            f"invalid mismatch={config.mismatch} with sim=kinematic; "
+            "valid: the defaults (a kinematic simulation has no dynamics to mismatch)"
+        )
+    if config.sim == "kinematic" and config.controller.disturbance != "none":
+        raise ConfigError(
+            f"invalid controller.disturbance={config.controller.disturbance!r} with "
+            "sim=kinematic; valid: none (a kinematic simulation has no torques to compensate)"
+        )
+    config.loop.validate()
+    if config.loop.stop_radius > config.success_radius:
+        raise ConfigError.invalid(
+            "stop_radius", config.stop_radius,
+            f"at most success_radius = {config.success_radius} m once x scenario.scale",
+        )
+    load_robot(config.robot)  # a description the loop cannot use is a configuration error
+    plan = config.plan
+    if not (plan.dt > 0 and plan.duration > 0):
+        raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")
+    if not math.isclose(plan.duration / plan.dt, round(plan.duration / plan.dt), abs_tol=1e-9):
+        raise ConfigError.invalid("plan.duration", plan.duration, "an integer multiple of plan.dt")
+    if not 2 <= plan.steps <= MAX_PLAN_STEPS:
+        raise ConfigError.invalid(
+            "plan.dt", plan.dt, f"a spacing giving 2..{MAX_PLAN_STEPS} knots over plan.duration"
+        )
+    if plan.max_iterations < 1:
+        raise ConfigError.invalid("plan.max_iterations", plan.max_iterations, "an integer >= 1")

@@ -1,0 +1,195 @@
+"""Continuous replanning as the authors' harness ran it (``mpc.cpp`` at commit b475fa1fe).
+
+``implementation=original method=cr`` selects it (``experiment=original`` sets it). Against
+:class:`~amex.methods.cr.CR` (ours):
+
+* Costs: the reference plan's, as the original set them: squared accelerations in the joint
+  metric of the plan, final TCP position 1e4, final TCP velocity 1e3, final TCP axis 1e4 and its
+  rate 1e3, plus the collision proxy ``(1 - d / margin)^2`` per knot and pair at weight 1
+  (``method.collision_margin``, original 0.1 m, in scene units; the other cost weights of
+  ``method.*`` do not apply). Solved by the authors' Newton method
+  (:func:`~amex.plan.optimizer.solve_trajectory_newton`, at most ``method.max_iterations``
+  steps), which leaves most warm starts unchanged.
+* Horizon: it starts with the reference's T knots and shrinks by one knot per outer step, so it
+  always ends at T_ref. Each step drops the first knot of the previous solution (the warm start)
+  and re-optimizes all the remaining knots, the first one included; the fixed prefix before them
+  is the measured configuration of the two *previous* outer steps (the start, at rest, for the
+  first two steps). Below 3 knots it stops replanning and keeps the last three.
+* Command: the next knot and the difference to the current one, ``q* = x_1``,
+  ``q_dot* = (x_1 - x_0) / dt``.
+* End: once fewer than 2 knots remain (t = T_ref - 0.01 s) the episode ends (:attr:`finished`),
+  whether the goal was reached or not.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from amex.core.errors import ConfigError
+from amex.core.types import Command
+from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.cr import CRConfig, CRStatus, _resample
+
+if TYPE_CHECKING:
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
+
+#: The original's cost weights: final position, final TCP velocity, final axis, its rate,
+#: collision proxy.
+ORIGINAL_WEIGHTS = (1e4, 1e3, 1e4, 1e3, 1.0)
+
+
+class CROriginal(Method):
+    """The authors' continuous replanning (module notes).
+
+    Args:
+        robot: the arm.
+        reference_q: the reference plan's knots, shape (T + 1, n) [rad]: the first warm start.
+        dt: the knot spacing and outer period [s] (the original's 0.01 s for both).
+        collision_margin: the collision proxy's margin [m].
+        metric: joint metric of the acceleration term (the reference plan's).
+        max_iterations: Newton steps per replan (original 20).
+        min_steps: the episode ends below this many knots (original 2).
+    """
+
+    name = "cr"
+    config_class = CRConfig
+
+    def __init__(
+        self,
+        robot: RobotModel,
+        reference_q: np.ndarray,
+        dt: float,
+        collision_margin: float,
+        metric: tuple[float, ...] = (),
+        max_iterations: int = 20,
+        min_steps: int = 2,
+    ) -> None:
+        from amex.plan.optimizer import TrajectoryCosts
+
+        Q = np.array(reference_q, dtype=float)
+        if Q.ndim != 2 or Q.shape[1] != robot.nv or len(Q) < 3 or not np.isfinite(Q).all():
+            raise ConfigError.invalid("reference_q", Q.shape, f"finite (T + 1 >= 3, {robot.nv})")
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ConfigError.invalid("dt", dt, "> 0 [s]")
+        position, velocity, axis, axis_velocity, collision = ORIGINAL_WEIGHTS
+        self.costs = TrajectoryCosts(
+            acceleration=1.0,
+            final_position=position,
+            final_velocity=velocity,
+            final_axis=axis,
+            final_axis_velocity=axis_velocity,
+            collision=collision,
+            collision_margin=collision_margin,
+            metric=metric,
+            final_velocity_space="tcp",
+        )
+        self.robot = robot
+        self.reference_q = Q
+        self.dt = float(dt)
+        self.max_iterations = int(max_iterations)
+        self.min_steps = int(min_steps)
+        self.restart()
+
+    @classmethod
+    def from_plan(
+        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
+    ) -> CROriginal:
+        """See :meth:`Method.from_plan`: the plan resampled at the outer period ``dt``."""
+        if robot is None:
+            raise ConfigError("CR needs the robot model: from_plan(plan, config, dt, robot)")
+        c = config if isinstance(config, CRConfig) else CRConfig()
+        steps = int(round(plan.duration / dt))
+        knots = _resample(plan.q, 0.0, dt / plan.dt, steps + 1)
+        return cls(
+            robot, knots, dt, c.collision_margin, plan.metric, c.max_iterations, c.min_steps
+        )
+
+    def restart(self) -> None:
+        """A new execution: the reference's knots, the start at rest as the prefix."""
+        self._x = self.reference_q.copy()
+        self._steps = len(self._x) - 1
+        start = self.reference_q[0]
+        self._prefix = (start, start)
+        self._measured: list[np.ndarray] = []
+        self._finished = False
+        self._status = CRStatus("shrink", self._steps, 0, math.nan, False, 0.0)
+
+    @property
+    def finished(self) -> bool:
+        """Whether fewer than ``min_steps`` knots remained at the last step: the episode ends."""
+        return self._finished
+
+    @property
+    def knots(self) -> np.ndarray:
+        """The current plan's knots, shape (T + 1, n) [rad]."""
+        return self._x
+
+    def replan(self, obs: Observation) -> CRStatus:
+        """One ``MPC::replan``: shrink, shift, re-optimize from the measured prefix."""
+        from amex.plan.optimizer import TrajectoryProblem, solve_trajectory_newton
+
+        tic = time.perf_counter()
+        self._steps -= 1
+        self._measured.append(np.array(obs.q, dtype=float))
+        if self._steps < 3:
+            self._x = self._x[-3:]
+            self._status = CRStatus("hold", self._steps, 0, math.nan, False, 0.0)
+            return self._status
+        if len(self._measured) > 2:
+            self._prefix = (self._measured[-3], self._measured[-2])
+        self._x = self._x[1:]
+        before, last = self._prefix
+        problem = TrajectoryProblem(
+            q_start=last,
+            v_start=(last - before) / self.dt,
+            steps=len(self._x),
+            dt=self.dt,
+            goal_pos=obs.goal[:3],
+            goal_axis=obs.goal[3:6],
+            obstacles=obs.obstacles,
+            obstacle_radii=obs.obstacle_radii,
+            costs=self.costs,
+        )
+        solution = solve_trajectory_newton(
+            self.robot, problem, np.vstack([last, self._x]), max_iterations=self.max_iterations
+        )
+        self._x = solution.q[1:]
+        self._status = CRStatus(
+            "shrink",
+            self._steps,
+            solution.iterations,
+            solution.cost,
+            solution.converged,
+            time.perf_counter() - tic,
+        )
+        return self._status
+
+    def reset(self, obs: Observation) -> None:
+        """See :meth:`Method.reset`."""
+        self.restart()
+
+    def step(self, obs: Observation) -> Command:
+        """See :meth:`Method.step`: replan, then the next knot (module notes)."""
+        if self._steps < self.min_steps:
+            self._finished = True
+        else:
+            self.replan(obs)
+        x = self._x
+        return Command(q=x[1].copy(), qd=(x[1] - x[0]) / self.dt)
+
+    def internals(self) -> dict[str, Any]:
+        """Mode, horizon, iterations, cost, converged and solve time of the last step."""
+        s = self._status
+        return {
+            "mode": s.mode,
+            "steps": s.steps,
+            "iterations": s.iterations,
+            "cost": s.cost,
+            "converged": s.converged,
+            "solve_time": s.solve_time,
+        }

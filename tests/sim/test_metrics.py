@@ -1,0 +1,75 @@
+"""Metrics: the paper's smoothness figure as the authors computed it, and a rate-free one."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from amex.experiment.config import RunConfig
+from amex.experiment.runner import prepare, run_one
+from amex.methods import TrackConfig
+from amex.sim.metrics import paper_sum_sq_acc, round_significant
+
+
+def test_round_significant_writes_like_printf_g():
+    rng = np.random.default_rng(0)
+    x = np.concatenate([rng.normal(scale=3.0, size=200), [0.0, 1.0, -2.5, 123456.7, 1e-7]])
+    expected = np.array([float(f"{v:.6g}") for v in x])
+    np.testing.assert_array_equal(round_significant(x), expected)
+
+
+def test_paper_sum_sq_acc_differentiates_like_matlab_gradient_twice():
+    dt = 1e-3
+    t = np.arange(0.0, 1.0, dt)
+    q = np.stack([0.3 * t**2, 0.1 * t**3], axis=1)  # exact: qdd = (0.6, 0.6 t)
+    first = np.empty_like(q)  # MATLAB: one-sided at the ends, central inside
+    first[0], first[-1] = (q[1] - q[0]) / dt, (q[-1] - q[-2]) / dt
+    first[1:-1] = (q[2:] - q[:-2]) / (2 * dt)
+    second = np.empty_like(q)
+    second[0], second[-1] = (first[1] - first[0]) / dt, (first[-1] - first[-2]) / dt
+    second[1:-1] = (first[2:] - first[:-2]) / (2 * dt)
+    assert paper_sum_sq_acc(q, dt, digits=17) == pytest.approx(np.sum(second**2), rel=1e-12)
+
+
+def test_rounding_to_six_digits_dominates_a_smooth_motion_at_1khz():
+    dt = 1e-3
+    t = np.arange(0.0, 4.0, dt)[:, None]
+    q = 1.5 + 0.2 * np.sin(np.pi * t / 4.0) * np.ones((1, 7))  # |q| > 1 rad on 7 joints
+    exact = paper_sum_sq_acc(q, dt, digits=17)
+    paper = paper_sum_sq_acc(q, dt)
+    assert exact == pytest.approx(213.0, rel=0.01)  # a slow sine: qdd ~ 0.12 rad/s^2
+    # 6 digits of 1.5 rad: steps of 1e-5 rad, a second difference of ~1-10 rad/s^2 at 1 ms
+    assert paper > 100 * exact
+
+
+@pytest.fixture(scope="module")
+def context():
+    config = RunConfig()
+    config.method = TrackConfig()
+    return config, prepare(config)
+
+
+def test_int_sq_acc_does_not_depend_on_the_simulation_rate(context):
+    config, ctx = context
+    base = run_one(config, ctx, 0)
+    config.inner_hz = 2000.0
+    try:
+        fast = run_one(config, ctx, 0)
+    finally:
+        config.inner_hz = 1000.0
+    assert fast.sum_sq_acc == pytest.approx(2.0 * base.sum_sq_acc, rel=0.05)
+    assert fast.int_sq_acc == pytest.approx(base.int_sq_acc, rel=0.05)
+    assert base.int_sq_acc == pytest.approx(base.sum_sq_acc * 1e-3)
+    assert base.sum_sq_acc_paper > base.sum_sq_acc
+
+
+def test_a_state_lag_of_one_step_changes_an_episode_only_slightly(context):
+    config, ctx = context
+    base = run_one(config, ctx, 0)
+    config.state_lag = True
+    try:
+        lagging = run_one(config, ctx, 0)
+    finally:
+        config.state_lag = False
+    assert lagging.success and lagging.final_time >= base.final_time
+    assert lagging.final_time - base.final_time <= 0.01
