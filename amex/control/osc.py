@@ -33,8 +33,8 @@ from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
 from amex.core.errors import SolverError
 from amex.core.types import PD, Command
-from amex.plan.problem import joint_metric
 from amex.robot import RobotModel
+from amex.robot.geometry import joint_metric
 
 
 @dataclass(frozen=True)
@@ -51,7 +51,7 @@ class OSCGains:
         margin: collision margin [m].
         reg: the regularizer ``H = reg * I`` of Eq. 4.
         metric: the regularizer's joint metric, ``H = reg * diag(metric)``: ``identity`` or
-            ``original`` (:func:`~amex.plan.problem.joint_metric`).
+            ``original`` (:func:`~amex.robot.geometry.joint_metric`).
         drift: include the TCP tasks' drift ``J_dot v`` (the original did not).
         joint_only: joint-target commands use the joint task alone (the original's CR).
     """

@@ -14,7 +14,8 @@ import numpy as np
 import pinocchio as pin
 
 from amex.control.collision import CollisionModel
-from amex.control.state import RobotState, cross, skew
+from amex.control.state import RobotState
+from amex.robot.geometry import cross, skew
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
 

@@ -18,9 +18,9 @@ from amex.core.scaling import scale_power, scale_value, scaled, to_scene_units
 from amex.core.schema import check_tree, limits
 from amex.experiment.shards import ShardSpec, shard_envs
 from amex.methods import IMPLEMENTATIONS, METHODS, MethodConfig
-from amex.plan.problem import METRICS
 from amex.plan.reference import PlanConfig
 from amex.robot import RobotConfig, load_robot
+from amex.robot.geometry import METRICS
 from amex.sim.episode import LoopConfig, MismatchConfig
 from amex.sim.perception import PerceptionConfig, PredictionConfig
 from amex.sim.scenario import TASKS, ScenarioConfig

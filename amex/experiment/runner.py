@@ -34,9 +34,9 @@ from amex.experiment.shards import ShardSpec, write_spec
 from amex.experiment.store import EpisodeStore, config_hash, scene_hash
 from amex.methods import get_method
 from amex.plan.cache import reference_costs, reference_plan
-from amex.plan.problem import joint_metric
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
+from amex.robot.geometry import joint_metric
 from amex.sim.episode import run_episode
 from amex.sim.metrics import EpisodeResult, summarize
 from amex.sim.scenario import make_scenario, plan_goal

@@ -70,6 +70,7 @@ from amex.core.errors import ConfigError
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
+from amex.plan.knots import resample_knots, whole_knots
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
     from amex.plan.optimizer import KnotFrames
@@ -285,10 +286,10 @@ class CR(Method):
         )
         offset = (obs.t - self._knots_t0) / self._knots_dt
         stride = self.knot_dt / self._knots_dt
-        index = _whole_knots(len(self._knots), offset, stride, steps + 1)
+        index = whole_knots(len(self._knots), offset, stride, steps + 1)
         frames = None
         if index is None:
-            q_init = _resample(self._knots, offset, stride, steps + 1)
+            q_init = resample_knots(self._knots, offset, stride, steps + 1)
         else:  # a shift by whole knots: the last solution's frames at them are still right
             q_init = self._knots[index]
             if self._frames is not None and index[1] >= 1:
@@ -319,7 +320,7 @@ class CR(Method):
         if self._status.mode != "shrink":  # hold, or the tail's final approach
             return self._knots[-1].copy(), np.zeros(self._knots.shape[1])
         u = self.dt / self._knots_dt
-        q = _resample(self._knots, 0.0, u / 2.0, 3)  # q(t), q(t + dt / 2), q(t + dt)
+        q = resample_knots(self._knots, 0.0, u / 2.0, 3)  # q(t), q(t + dt / 2), q(t + dt)
         return q[1], (q[2] - q[0]) / self.dt
 
     # ----------------------------------------------------------------------------- Method
@@ -349,38 +350,3 @@ class CR(Method):
             "solve_time": s.solve_time,
             "plan": self.kinematics.frame_positions(self._knots, self.robot.tcp_frame_id),
         }
-
-
-def _resample(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:
-    """Rows at fractional indices ``offset + k stride``, ``k < count``, linearly interpolated.
-
-    Indices are clamped to ``[0, len(knots) - 1]`` (the last knot repeats past the end); indices
-    within 1e-9 of an integer take that row exactly (the usual case: a shift by whole knots).
-    """
-    last = len(knots) - 1
-    index = _whole_knots(len(knots), offset, stride, count)
-    if index is not None:  # whole knots: no blending
-        return knots[index]
-    u = np.clip(offset + stride * np.arange(count), 0.0, float(last))
-    nearest = np.rint(u)
-    u = np.where(np.abs(u - nearest) <= 1e-9, nearest, u)
-    i = np.minimum(np.floor(u).astype(int), max(last - 1, 0))
-    a = (u - i)[:, None]
-    if last == 0:
-        return np.repeat(knots[:1], count, axis=0)
-    return (1.0 - a) * knots[i] + a * knots[i + 1]
-
-
-def _whole_knots(length: int, offset: float, stride: float, count: int) -> np.ndarray | None:
-    """The rows of a resampling by whole knots, else None.
-
-    Whole knots: ``offset`` and ``stride`` within 1e-9 of integers; the rows are then
-    ``offset + k stride``, ``k < count``, clamped to ``[0, length - 1]`` (:func:`_resample`).
-    """
-    first, step = round(offset), round(stride)
-    if abs(offset - first) > 1e-9 or abs(stride - step) > 1e-9:
-        return None
-    index = np.arange(first, first + step * count, step) if step else np.full(count, first)
-    np.minimum(index, length - 1, out=index)
-    np.maximum(index, 0, out=index)
-    return index

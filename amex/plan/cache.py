@@ -29,9 +29,9 @@ from amex.plan.optimizer import (
     solve_trajectory,
     solve_trajectory_newton,
 )
-from amex.plan.problem import joint_metric
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
+from amex.robot.geometry import joint_metric
 
 PLAN_FORMAT = 1
 

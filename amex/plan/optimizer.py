@@ -38,7 +38,6 @@ import pinocchio as pin
 from scipy.linalg import LinAlgError, solveh_banded
 from scipy.linalg.lapack import dpbsv as _dpbsv
 
-from amex.control.state import skew
 from amex.core.errors import ConfigError, SolverError
 from amex.plan.batch_kinematics import (
     BatchKinematics,
@@ -49,6 +48,7 @@ from amex.plan.batch_kinematics import (
 from amex.plan.kinematics_kernels import final_terms_joint, near_pairs
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
+from amex.robot.geometry import skew
 
 __all__ = [
     "BatchKinematics",

@@ -15,7 +15,6 @@ import numpy as np
 
 from amex.core.errors import ConfigError, SolverError
 
-METRICS = ("identity", "original")
 VELOCITY_SPACES = ("joint", "tcp")
 
 
@@ -32,7 +31,7 @@ class TrajectoryCosts:
         collision: weight of sum over knots and pairs of max(0, 1 - d / margin)^2.
         collision_margin: distance below which the collision term acts [m].
         metric: joint metric diag(H) of the acceleration term, ``sum_t q_ddot_t^T H q_ddot_t dt``
-            (:func:`joint_metric`); empty: the identity.
+            (:func:`~amex.robot.geometry.joint_metric`); empty: the identity.
         final_velocity_space: the final velocity term on the joints (``joint``, ours:
             ``(q_T - q_{T-1}) / dt``) or on the TCP position (``tcp``, the original's:
             ``(p(q_T) - p(q_{T-1})) / dt``).
@@ -64,20 +63,6 @@ class TrajectoryCosts:
                 raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
         if not (math.isfinite(self.collision_margin) and self.collision_margin > 0.0):
             raise ConfigError.invalid("costs.collision_margin", self.collision_margin, "> 0 [m]")
-
-
-def joint_metric(kind: str, n: int) -> tuple[float, ...]:
-    """The joint metric diag(H) named ``kind`` for an ``n``-joint arm (empty: the identity).
-
-    ``original``: H = diag(sqrt(n), sqrt(n - 1), ..., 1), the default metric of the authors'
-    framework (for their 7-joint chain diag(sqrt 7, sqrt 6, sqrt 5, 2, sqrt 3, sqrt 2, 1)):
-    accelerating a joint near the base costs more, roughly as it moves more of the arm.
-    """
-    if kind == "identity":
-        return ()
-    if kind == "original":
-        return tuple(math.sqrt(n - j) for j in range(n))
-    raise ConfigError.invalid("metric", kind, METRICS)
 
 
 @dataclass(frozen=True, eq=False)

@@ -56,7 +56,7 @@ class PlanConfig:
         final_axis: weight of the final TCP z-axis error (original 1e4).
         final_axis_velocity: weight of the final TCP z-axis velocity (original 1e3).
         metric: joint metric of the acceleration term, ``identity`` or ``original`` (the
-            authors' H = diag(sqrt(n), ..., 1); :func:`~amex.plan.problem.joint_metric`).
+            authors' H = diag(sqrt(n), ..., 1); :func:`~amex.robot.geometry.joint_metric`).
         final_velocity_space: the final velocity term on the ``joint`` velocities (ours) or on
             the ``tcp`` position's (the original's).
         solver: ``levenberg`` (:func:`~amex.plan.optimizer.solve_trajectory`) or ``newton``

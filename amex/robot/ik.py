@@ -11,8 +11,8 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from amex.control.state import skew
 from amex.robot import RobotModel
+from amex.robot.geometry import skew
 
 
 class IKResult(NamedTuple):

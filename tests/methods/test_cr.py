@@ -23,7 +23,7 @@ from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one
 from amex.methods import CR, METHODS, CRConfig
 from amex.methods.base import Observation
-from amex.methods.cr import _resample
+from amex.plan.knots import resample_knots
 from amex.plan.optimizer import TrajectoryProblem, shift_warm_start, solve_trajectory
 from amex.sim.episode import run_episode
 from amex.sim.scenario import make_scenario
@@ -269,9 +269,9 @@ def test_invalid_settings_raise_config_error(context):
 def test_resampling_whole_knots_is_the_shifted_warm_start():
     rng = np.random.default_rng(0)
     knots = rng.standard_normal((11, 7))
-    np.testing.assert_array_equal(_resample(knots, 1.0, 1.0, 10), shift_warm_start(knots, 9))
-    np.testing.assert_array_equal(_resample(knots, 1.0, 1.0, 14), shift_warm_start(knots, 13))
-    half = _resample(knots, 0.5, 2.0, 3)  # rows at 0.5, 2.5, 4.5
+    np.testing.assert_array_equal(resample_knots(knots, 1.0, 1.0, 10), shift_warm_start(knots, 9))
+    np.testing.assert_array_equal(resample_knots(knots, 1.0, 1.0, 14), shift_warm_start(knots, 13))
+    half = resample_knots(knots, 0.5, 2.0, 3)  # rows at 0.5, 2.5, 4.5
     np.testing.assert_allclose(half, (knots[[0, 2, 4]] + knots[[1, 3, 5]]) / 2, atol=1e-15)
 
 

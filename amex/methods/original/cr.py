@@ -32,7 +32,8 @@ import numpy as np
 from amex.core.errors import ConfigError
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.methods.cr import CRConfig, CRStatus, _resample
+from amex.methods.cr import CRConfig, CRStatus
+from amex.plan.knots import resample_knots
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
@@ -104,7 +105,7 @@ class CROriginal(Method):
             raise ConfigError("CR needs the robot model: from_plan(plan, config, dt, robot)")
         c = config if isinstance(config, CRConfig) else CRConfig()
         steps = int(round(plan.duration / dt))
-        knots = _resample(plan.q, 0.0, dt / plan.dt, steps + 1)
+        knots = resample_knots(plan.q, 0.0, dt / plan.dt, steps + 1)
         return cls(
             robot, knots, dt, c.collision_margin, plan.metric, c.max_iterations, c.min_steps
         )

@@ -1,0 +1,40 @@
+"""Knot sequences of a joint trajectory resampled at other times: replanning's warm starts."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def resample_knots(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:
+    """Rows at fractional indices ``offset + k stride``, ``k < count``, linearly interpolated.
+
+    Indices are clamped to ``[0, len(knots) - 1]`` (the last knot repeats past the end); indices
+    within 1e-9 of an integer take that row exactly (the usual case: a shift by whole knots).
+    """
+    last = len(knots) - 1
+    index = whole_knots(len(knots), offset, stride, count)
+    if index is not None:  # whole knots: no blending
+        return knots[index]
+    u = np.clip(offset + stride * np.arange(count), 0.0, float(last))
+    nearest = np.rint(u)
+    u = np.where(np.abs(u - nearest) <= 1e-9, nearest, u)
+    i = np.minimum(np.floor(u).astype(int), max(last - 1, 0))
+    a = (u - i)[:, None]
+    if last == 0:
+        return np.repeat(knots[:1], count, axis=0)
+    return (1.0 - a) * knots[i] + a * knots[i + 1]
+
+
+def whole_knots(length: int, offset: float, stride: float, count: int) -> np.ndarray | None:
+    """The rows of a resampling by whole knots, else None.
+
+    Whole knots: ``offset`` and ``stride`` within 1e-9 of integers; the rows are then
+    ``offset + k stride``, ``k < count``, clamped to ``[0, length - 1]`` (:func:`resample_knots`).
+    """
+    first, step = round(offset), round(stride)
+    if abs(offset - first) > 1e-9 or abs(stride - step) > 1e-9:
+        return None
+    index = np.arange(first, first + step * count, step) if step else np.full(count, first)
+    np.minimum(index, length - 1, out=index)
+    np.maximum(index, 0, out=index)
+    return index
