@@ -84,7 +84,7 @@ def bench_episode(config: RunConfig, repeats: int = 5) -> list[float]:
 
 def bench_robot_episode(robot: str, sim: str, repeats: int) -> tuple[list[float], float]:
     """Wall times [s] of Task-0 ``track`` episodes of ``robot`` simulated as ``sim``."""
-    from amex.app.cli import load_config
+    from amex.app.compose import load_config
 
     config = load_config([f"robot={robot}", f"sim={sim}", "method=track", "task=0"])
     walls = bench_episode(config, repeats)

@@ -22,17 +22,10 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from amex.app.argparsing import OneLineParser, fail
-from amex.core.durable import WriteError, create_new
-from amex.core.errors import AmexError
+from amex.core.durable import create_new
+from amex.core.errors import AmexError, LogError, LogExistsError, WriteError
 from amex.log.plot3d import set_equal_axes_3d
-from amex.log.reader import (
-    LogData,
-    LogError,
-    LogExistsError,
-    read_log,
-    recover,
-    topics_with_numbers,
-)
+from amex.log.reader import LogData, read_log, recover, topics_with_numbers
 from amex.log.serve import DEFAULT_PORT
 
 PROG = "amex-log"

@@ -23,21 +23,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from types import FrameType
 
+from amex.core.errors import Interrupted
+
 #: Environment variable holding the pid of the process that launched a sweep.
 LAUNCHER_PID = "AMEX_LAUNCHER_PID"
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-class Interrupted(KeyboardInterrupt):
-    """A stop signal arrived; ``signum`` says which (exit code ``128 + signum``)."""
-
-    def __init__(self, signum: int) -> None:
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-    def __reduce__(self) -> tuple:
-        """Picklable, so a sweep worker can send it back to the launching process."""
-        return (Interrupted, (self.signum,))
 
 
 def _raise_interrupted(signum: int, frame: FrameType | None) -> None:

@@ -124,14 +124,14 @@ class SweepProgress(Callback):
 
     def on_multirun_start(self, config: Any, **kwargs: Any) -> None:
         """Start the polling thread for the sweep directory."""
-        from amex.app.cli import _OUTPUT, STARTED
+        from amex.app.session import OUTPUT, STARTED
         from amex.app.sweeps import is_ours, job_value, sweep_jobs
         from amex.experiment.shards import shard_envs
 
         self._started = time.time() - (time.perf_counter() - STARTED), STARTED
         self._stop = threading.Event()
         self.sweep_dir = sweep_dir = Path(str(config.hydra.sweep.dir))
-        _OUTPUT["dir"] = sweep_dir
+        OUTPUT["dir"] = sweep_dir
         SWEEPS.append(self)
         overrides = [str(o) for o in config.hydra.overrides.task]
         sweeper = config.hydra.sweeper

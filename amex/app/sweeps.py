@@ -1,7 +1,7 @@
 """The jobs of a ``-m`` sweep: the grids, every shard, and the longest first.
 
 One function, :func:`sweep_jobs`, says which jobs a sweep runs, for the launching process's checks
-(:mod:`amex.app.cli`), its progress bar (:mod:`amex.app.progress`) and the sweeper that launches
+(:mod:`amex.app.checks`), its progress bar (:mod:`amex.app.progress`) and the sweeper that launches
 them (``hydra/sweeper=amex``, :mod:`hydra_plugins.amex_sweeper`), so the three always agree:
 
 * ``hydra.sweeper.params`` and the command line make a Cartesian product, as with Hydra's basic
@@ -16,15 +16,16 @@ them (``hydra/sweeper=amex``, :mod:`hydra_plugins.amex_sweeper`), so the three a
 :func:`order_jobs` sorts them longest first by an estimate (:func:`estimate`: environments times
 a measured cost per episode of the method on the task), which keeps every worker busy to the end
 of a local sweep: a long job started last would otherwise run alone.
-
-Like :mod:`amex.app.cli`, this module imports Hydra; library code does not.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+from amex.core.errors import UsageError
 
 #: CPU seconds per episode (Panda, 100 Hz, seed 0): ``make paper``'s cells measured on the 2-core
 #: development machine (``cpu_time`` of their ``summary.json`` / 150; task 0 as task 1). Only the
@@ -60,13 +61,28 @@ def _override(key: str, value: Any) -> str:
     return f"{key}={value}"
 
 
-def _product(overrides: list[str]) -> list[list[str]]:
-    """The Cartesian product of ``overrides`` (Hydra's basic sweeper; later keys win)."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+def _product(overrides: list[str], config_loader: Any = None) -> list[list[str]]:
+    """The Cartesian product of ``overrides`` (Hydra's basic sweeper's rule; later keys win).
+
+    Choice and range sweeps expand by themselves; a ``glob(...)`` over a config group needs a
+    ``config_loader`` (:func:`amex.app.compose.config_loader`) to know the group's options.
+    """
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    parsed = OverridesParser.create().parse_overrides(overrides)
-    return BasicSweeper.split_arguments(parsed, None)[0]
+    parser = OverridesParser.create(config_loader=config_loader)
+    values: dict[str, list[str]] = {}
+    for override in parser.parse_overrides(overrides):
+        key = override.get_key_element()
+        if not override.is_sweep_override():
+            values[key] = [f"{key}={override.get_value_element_as_str()}"]
+        elif override.is_discrete_sweep():
+            values[key] = [f"{key}={v}" for v in override.sweep_string_iterator()]
+        else:
+            raise UsageError(
+                f"invalid sweep {override.input_line!r}; valid: a list a,b,c, range(start, stop"
+                "[, step]), choice(...) or glob(...) over a config group (not an interval)"
+            )
+    return [list(job) for job in itertools.product(*values.values())]
 
 
 def sweep_jobs(
@@ -75,6 +91,7 @@ def sweep_jobs(
     arguments: Sequence[str],
     shards: int = 1,
     expand: bool = True,
+    config_loader: Any = None,
 ) -> list[list[str]]:
     """Every job of a sweep, as override lists, in declaration order (module notes).
 
@@ -85,15 +102,17 @@ def sweep_jobs(
         shards: the configured ``shards`` for jobs that do not set it.
         expand: run every shard of a job with ``shards > 1`` and no ``shard`` (as
             ``hydra/sweeper=amex`` does; Hydra's basic sweeper does not, nor has it grids).
+        config_loader: Hydra's config loader, for ``glob(...)`` sweeps over config groups.
 
     Raises:
         hydra's OverrideParseException: a value that is not a valid override.
+        UsageError: a sweep that is not a list of values (an interval).
     """
     base = [_override(k, v) for k, v in (params or {}).items()]
     products: list[list[str]] = []
     for grid in grids.values() if grids else [{}]:
         extra = [_override(k, v) for k, v in (grid or {}).items()]
-        products += _product([*base, *extra, *arguments])
+        products += _product([*base, *extra, *arguments], config_loader)
     jobs: list[list[str]] = []
     seen: set[tuple[str, ...]] = set()
     for job in products:

@@ -24,22 +24,13 @@ import socket
 import time
 from pathlib import Path
 
-from amex.core.errors import AmexError
+from amex.core.errors import LockedError, WriteError
 
 LOCK_NAME = ".amex-run.lock"
 
 
-class WriteError(AmexError):
-    """A file could not be written completely; the message names the file and the reason."""
-
-    def __init__(self, path: Path | str, reason: str) -> None:
-        super().__init__(f"cannot write {path}: {reason}")
-        self.path = Path(path)
-        self.reason = reason
 
 
-class LockedError(AmexError):
-    """Another process holds the run directory's lock."""
 
 
 def _reason(error: OSError) -> str:

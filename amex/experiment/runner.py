@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from amex.core.durable import RunLock, WriteError, replace_durably
-from amex.core.errors import ConfigError
+from amex.core.durable import RunLock, replace_durably
+from amex.core.errors import ConfigError, WriteError
 from amex.core.schema import field_names
 from amex.experiment.config import RunConfig, validate
 from amex.experiment.shards import ShardSpec, write_spec

@@ -23,13 +23,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from amex.core.durable import replace_durably
-from amex.core.errors import AmexError, ConfigError
+from amex.core.errors import ConfigError, ShardError
 
 SHARD_JSON = "shard.json"
 
 
-class ShardError(AmexError):
-    """The shards of a configuration overlap or leave gaps; the message names them."""
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from typing import Any
 
 import amex
 from amex.core.durable import append_durably, replace_durably
-from amex.core.errors import AmexError
+from amex.core.errors import StoreError
 from amex.sim.metrics import COLUMNS, REQUIRED_COLUMNS, EpisodeResult
 
 HASH_COLUMNS = ("config_hash", "scene_hash")
@@ -67,8 +67,6 @@ _ADDED_OPTIONS: dict[tuple[str, ...], object] = {
 }
 
 
-class StoreError(AmexError):
-    """An episodes.csv cannot be used; the message names the file."""
 
 
 def _without_neutral(spec: dict[str, Any]) -> dict[str, Any]:

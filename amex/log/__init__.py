@@ -11,19 +11,15 @@ browser
 :mod:`amex.log.layout`) and films them (:mod:`amex.log.video`, :mod:`amex.log.render`).
 """
 
-from amex.log.reader import (
-    ChannelInfo,
+from amex.core.errors import (
     EmptyLogError,
-    LogData,
     LogError,
     LogExistsError,
-    LogMessage,
     LogNotFoundError,
     NotMcapError,
     TruncatedLogError,
-    read_log,
-    recover,
 )
+from amex.log.reader import ChannelInfo, LogData, LogMessage, read_log, recover
 from amex.log.writer import EpisodeLogger
 
 __all__ = [

@@ -35,37 +35,17 @@ from typing import Any, NamedTuple
 import numpy as np
 from mcap.writer import CompressionType, Writer
 
-from amex.core.errors import AmexError
+from amex.core.errors import (
+    CorruptLogError,
+    EmptyLogError,
+    LogError,
+    LogExistsError,
+    LogNotFoundError,
+    NotMcapError,
+    TruncatedLogError,
+)
 from amex.log.protobuf import ProtobufSchema
 from amex.log.records import MCAP_MAGIC, IndexedEnd, RawLog, read_indexed, read_stream
-
-
-class LogError(AmexError):
-    """A log file cannot be read or written; the message names the file and the problem."""
-
-
-class LogNotFoundError(LogError):
-    """The log file does not exist."""
-
-
-class EmptyLogError(LogError):
-    """The log file has no bytes."""
-
-
-class NotMcapError(LogError):
-    """The file is not an MCAP file (wrong magic bytes)."""
-
-
-class TruncatedLogError(LogError):
-    """The file was cut before any message could be recovered."""
-
-
-class CorruptLogError(LogError):
-    """The file is complete but damaged so that no message can be read."""
-
-
-class LogExistsError(LogError):
-    """Refusing to overwrite an existing file."""
 
 
 class ChannelInfo(NamedTuple):

@@ -23,15 +23,13 @@ from typing import Any
 
 import numpy as np
 
-from amex.log.reader import LogError
+from amex.core.errors import RenderError
 from amex.log.urdf import resolve_mesh
 
 MESH_FORMATS = (".stl", ".obj", ".msh")  # what MuJoCo's compiler reads
 GL_HELP = "install Debian's libegl1 libegl-mesa0 libgl1-mesa-dri (make render-deps)"
 
 
-class RenderError(LogError):
-    """Nothing can be rendered here (no headless OpenGL), or the robot cannot be compiled."""
 
 
 def gl_context(width: int, height: int) -> Any:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote, unquote, urlparse
 
-from amex.log.reader import LogError
+from amex.core.errors import LogError
 
 
 @dataclass(frozen=True)

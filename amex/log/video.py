@@ -21,9 +21,10 @@ from typing import Any
 
 import numpy as np
 
+from amex.core.errors import LogError
 from amex.core.palette import GOAL_COLOR, OBSTACLE_COLOR, REFERENCE_COLOR, method_color, rgba
 from amex.core.palette import method_label as label_of
-from amex.log.reader import LogData, LogError, read_log
+from amex.log.reader import LogData, read_log
 from amex.log.render import (
     SceneDrawer,
     aim_camera,

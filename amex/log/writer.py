@@ -67,9 +67,9 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
 
 import amex
+from amex.core.errors import LogError, LogExistsError
 from amex.log import messages as M
 from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
-from amex.log.reader import LogError, LogExistsError
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from amex.core.durable import WriteError, replace_durably
+from amex.core.durable import replace_durably
+from amex.core.errors import WriteError
 from amex.core.paths import cache_dir
 from amex.plan.optimizer import (
     TrajectoryCosts,

@@ -42,8 +42,8 @@ def test_cell_config_sets_speed_noise_latency_and_prediction():
 
 def _study_jobs(name):
     """The runs of ``amex-run -m study=<name>`` (what its sweeper launches), as configurations."""
-    from amex.app.cli import load_config
-    from amex.app.launch import sweep_settings
+    from amex.app.checks import sweep_settings
+    from amex.app.compose import load_config
     from amex.app.sweeps import sweep_jobs
 
     params, grids, shards, _ = sweep_settings([f"study={name}"], [])

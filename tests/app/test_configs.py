@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from amex.app.cli import CONF_DIR, load_config
+from amex.app.compose import CONF_DIR, load_config
 from amex.experiment.runner import run
 
 CONF = Path(CONF_DIR)

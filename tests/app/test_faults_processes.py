@@ -14,8 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from amex.app.processes import Interrupted, signals_raise
-from amex.core.durable import LockedError, RunLock
+from amex.app.processes import signals_raise
+from amex.core.durable import RunLock
+from amex.core.errors import Interrupted, LockedError
 from amex.experiment.config import RunConfig
 from amex.experiment.runner import run
 from amex.experiment.store import read_rows

@@ -218,14 +218,14 @@ def test_observer_degrades_gracefully_when_the_arm_cannot_carry_its_own_weight(r
 
 
 def test_an_unknown_compensation_is_a_config_error_naming_the_choices():
-    from amex.app.cli import load_config
+    from amex.app.compose import load_config
 
     with pytest.raises(ConfigError, match="controller.disturbance='dob'; valid: none, observer"):
         load_config(["controller.disturbance=dob"])
 
 
 def test_compensation_is_refused_in_a_kinematic_simulation():
-    from amex.app.cli import load_config
+    from amex.app.compose import load_config
 
     with pytest.raises(ConfigError, match="disturbance='observer' with sim=kinematic"):
         load_config(["sim=kinematic", "controller.disturbance=observer"])

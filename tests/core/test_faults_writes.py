@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from amex.core.durable import WriteError, append_durably, create_new, replace_durably
+from amex.core.durable import append_durably, create_new, replace_durably
+from amex.core.errors import WriteError
 from amex.experiment.store import EpisodeStore, read_rows
 from amex.sim.metrics import EpisodeResult
 

@@ -13,8 +13,9 @@ import math
 
 import pytest
 
-from amex.app.cli import UsageError, _validate_command_line, load_config
-from amex.core.errors import ConfigError
+from amex.app.checks import validate_command_line
+from amex.app.compose import load_config
+from amex.core.errors import ConfigError, UsageError
 from amex.experiment.config import RunConfig, validate
 from amex.experiment.runner import preflight
 from amex.methods import METHODS
@@ -134,7 +135,7 @@ def test_an_unknown_key_is_an_error_with_or_without_plus(overrides, needle):
 def test_bad_values_are_refused_before_any_directory_exists(tmp_path, monkeypatch, argv, needle):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(UsageError) as info:
-        _validate_command_line([*argv, "episodes=1"])
+        validate_command_line([*argv, "episodes=1"])
     message = str(info.value)
     assert needle in message and "valid" in message, message
     assert "\n" not in message
@@ -150,13 +151,13 @@ def test_a_run_directory_that_is_a_file_or_unwritable_is_refused(tmp_path, monke
         (["-m", f"hydra.sweep.dir={tmp_path / 'plain'}"], "it is a file"),
     ):
         with pytest.raises(UsageError, match=needle):
-            _validate_command_line([*argv, "episodes=1"])
+            validate_command_line([*argv, "episodes=1"])
 
 
 def test_a_run_directory_on_a_read_only_file_system_is_refused(read_only_dir, monkeypatch):
     monkeypatch.chdir(read_only_dir.parent)
     with pytest.raises(UsageError, match="not writable"):
-        _validate_command_line([f"hydra.run.dir={read_only_dir / 'run'}", "episodes=1"])
+        validate_command_line([f"hydra.run.dir={read_only_dir / 'run'}", "episodes=1"])
 
 
 @pytest.mark.parametrize(
@@ -182,5 +183,5 @@ def test_a_sweep_job_directory_of_another_configuration_is_refused_untouched(tmp
     monkeypatch.chdir(tmp_path)
     argv = ["-m", "task=0,1", "method=track", "episodes=1", f"hydra.sweep.dir={sweep}"]
     with pytest.raises(UsageError, match="another configuration"):
-        _validate_command_line(argv)
+        validate_command_line(argv)
     assert {p: p.read_bytes() for p in sweep.rglob("*") if p.is_file()} == before

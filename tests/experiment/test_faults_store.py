@@ -5,18 +5,11 @@ import json
 
 import pytest
 
-from amex.app.cli import UsageError, _validate_command_line
-from amex.core.durable import WriteError
+from amex.app.checks import validate_command_line
+from amex.core.errors import StoreError, UsageError, WriteError
 from amex.experiment.config import RunConfig
 from amex.experiment.runner import run
-from amex.experiment.store import (
-    CSV_COLUMNS,
-    EpisodeStore,
-    StoreError,
-    config_hash,
-    read_rows,
-    scene_hash,
-)
+from amex.experiment.store import CSV_COLUMNS, EpisodeStore, config_hash, read_rows, scene_hash
 from amex.methods import METHODS
 from analysis.table import TableError, load_runs
 
@@ -58,7 +51,7 @@ def test_a_zero_byte_episodes_csv_is_a_fresh_run(tmp_path, monkeypatch):
     (out / "episodes.csv").write_bytes(b"")
     assert read_rows(out / "episodes.csv") == []
     monkeypatch.chdir(tmp_path)
-    _validate_command_line(["task=0", "method=track", "episodes=2", f"hydra.run.dir={out}"])
+    validate_command_line(["task=0", "method=track", "episodes=2", f"hydra.run.dir={out}"])
     run(_config(2), out)
     assert [r["env"] for r in read_rows(out / "episodes.csv")] == ["0", "1"]
 
@@ -79,7 +72,7 @@ def test_a_bad_stored_value_is_refused_alike_by_resume_and_by_the_table(
         load_runs(tmp_path)
     monkeypatch.chdir(tmp_path)
     with pytest.raises(UsageError, match="malformed row"):
-        _validate_command_line(["task=0", "method=track", "episodes=3", f"hydra.run.dir={out}"])
+        validate_command_line(["task=0", "method=track", "episodes=3", f"hydra.run.dir={out}"])
 
 
 def test_resume_and_table_read_the_same_values(recorded):

@@ -14,8 +14,8 @@ import fake_slurm
 import pytest
 
 from amex.app.sweeps import estimate, order_jobs, sweep_jobs
-from amex.core.errors import ConfigError
-from amex.experiment.shards import ShardError, ShardSpec, check_cover, shard_envs
+from amex.core.errors import ConfigError, ShardError
+from amex.experiment.shards import ShardSpec, check_cover, shard_envs
 from amex.sim.metrics import TIMING_COLUMNS
 
 AMEX_RUN = str(Path(sys.executable).parent / "amex-run")

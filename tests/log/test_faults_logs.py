@@ -7,10 +7,10 @@ from mcap.reader import SeekingReader
 from mcap.writer import Writer
 
 from amex.app.log_cli import main
+from amex.core.errors import CorruptLogError, LogError
 from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one
 from amex.log import read_log
-from amex.log.reader import CorruptLogError, LogError
 from amex.methods.dmp import DMPConfig
 
 

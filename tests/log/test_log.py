@@ -15,18 +15,16 @@ import pytest
 from mcap.reader import make_reader
 
 from amex.app.log_cli import main
-from amex.experiment.config import RunConfig
-from amex.experiment.runner import prepare, run_one
-from amex.log import (
+from amex.core.errors import (
     EmptyLogError,
-    EpisodeLogger,
     LogExistsError,
     LogNotFoundError,
     NotMcapError,
     TruncatedLogError,
-    read_log,
-    recover,
 )
+from amex.experiment.config import RunConfig
+from amex.experiment.runner import prepare, run_one
+from amex.log import EpisodeLogger, read_log, recover
 from amex.log.writer import LinkTransforms
 from amex.methods.dmp import DMPConfig
 

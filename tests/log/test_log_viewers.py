@@ -43,7 +43,7 @@ def logs(tmp_path_factory):
 @pytest.fixture(scope="module")
 def robot_logs(tmp_path_factory):
     """0.3 s of Task 1 with AMEX on the other catalogue arms: {robot: path}."""
-    from amex.app.cli import load_config
+    from amex.app.compose import load_config
 
     out = tmp_path_factory.mktemp("robots")
     paths = {}

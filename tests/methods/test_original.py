@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from amex.app.cli import load_config
+from amex.app.compose import load_config
 from amex.experiment.runner import prepare, run_one
 from amex.methods import AMEXOriginal, CROriginal, DMPOriginal, get_method
 from amex.methods.base import Observation

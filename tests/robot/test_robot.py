@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from amex.app.cli import CONF_DIR, load_config
+from amex.app.compose import CONF_DIR, load_config
 from amex.core.errors import ConfigError
 from amex.core.scaling import scale_value
 from amex.robot import PANDA_Q0, RobotConfig, load_robot
