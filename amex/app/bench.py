@@ -48,7 +48,7 @@ def bench_inner_step(config: RunConfig, steps: int = 4000) -> list[float]:
     """Per-step wall times [s] of the inner loop following the reference plan in Task 0."""
     context = prepare(config)
     robot, plan = context.robot, context.plan
-    scenario = make_scenario(config.scenario, 0, 0, 0, plan.y[0, :3], plan.duration)
+    scenario = make_scenario(config.scene(), 0, 0, 0, plan.y[0, :3], plan.duration)
     sim = Simulation(robot, scenario, config.inner_hz)
     collision = CollisionModel(robot, scenario.obstacle_radii)
     osc = OperationalSpaceController(robot, config.gains(), collision)
@@ -130,7 +130,7 @@ def bench_method_steps(name: str, task: int = 3, envs: range = range(1)) -> list
     method.step = timed  # type: ignore[method-assign]
     for env in envs:
         scenario = make_scenario(
-            config.scenario, task, config.seed, env, context.plan.y[0, :3], context.plan.duration
+            config.scene(), task, config.seed, env, context.plan.y[0, :3], context.plan.duration
         )
         run_episode(context.robot, method, scenario, config.gains(), config.loop)
     return times

@@ -157,6 +157,13 @@ class RunConfig:
             state_lag=bool(self.state_lag),
         )
 
+    def scene(self) -> ScenarioConfig:
+        """The scene distributions in the scene's units (:mod:`amex.core.scaling`).
+
+        The one place they are converted: :mod:`amex.sim.scenario` takes them so.
+        """
+        return to_scene_units(self.scenario, float(self.scenario.scale))
+
     def method_config(self) -> Any:
         """The method's configuration in the scene's units (:mod:`amex.core.scaling`)."""
         return to_scene_units(self.method, float(self.scenario.scale))

@@ -26,20 +26,21 @@ from typing import Any
 
 import numpy as np
 
+from amex.control.osc import OSCGains
 from amex.core.durable import RunLock, replace_durably
 from amex.core.errors import ConfigError, WriteError
 from amex.core.schema import field_names
 from amex.experiment.config import RunConfig, validate
 from amex.experiment.shards import ShardSpec, write_spec
 from amex.experiment.store import EpisodeStore, config_hash, scene_hash
-from amex.methods import get_method
+from amex.methods import Method, get_method
 from amex.plan.cache import reference_costs, reference_plan
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
 from amex.robot.geometry import joint_metric
-from amex.sim.episode import run_episode
+from amex.sim.episode import LoopConfig, run_episode
 from amex.sim.metrics import EpisodeResult, summarize
-from amex.sim.scenario import make_scenario, plan_goal
+from amex.sim.scenario import ScenarioConfig, make_scenario, plan_goal, with_reference_goal
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +63,7 @@ def stand_in_plan(robot: RobotModel, config: RunConfig) -> ReferencePlan:
     """
     n = config.plan.steps + 1
     y0 = robot.task_position(robot.q0)
-    goal_pos = plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation)
+    goal_pos = plan_goal(config.scene(), config.task, robot.tcp_pose(robot.q0).translation)
     goal = np.concatenate([goal_pos, config.scenario.goal_axis])
     u = np.linspace(0.0, 1.0, n)[:, None]
     y = (1.0 - u) * y0 + u * goal
@@ -102,10 +103,81 @@ def prepare(config: RunConfig) -> RunContext:
     plan = reference_plan(
         robot,
         config.plan,
-        plan_goal(config.scenario, config.task, robot.tcp_pose(robot.q0).translation),
+        plan_goal(config.scene(), config.task, robot.tcp_pose(robot.q0).translation),
         np.asarray(config.scenario.goal_axis, dtype=float),
     )
     return RunContext(robot, plan)
+
+
+@dataclass(frozen=True)
+class EpisodeSetup:
+    """What the episodes of one configuration share, in the lower layers' own types.
+
+    Built once per run from the :class:`~amex.experiment.config.RunConfig` (:func:`setup`):
+    every length is in the scene's units, so nothing below the experiment layer sees the run's
+    configuration or converts a unit.
+
+    Attributes:
+        context: the robot and the reference plan.
+        task: the task, 0-4.
+        seed: the scene seed.
+        scene: the scene distributions in scene units, reference goal stated.
+        method: the method's class (``implementation`` resolved).
+        params: the method's parameters in scene units.
+        outer_dt: the outer period [s].
+        gains: the inner controller's gains, the method's task gains included.
+        loop: the episode loop's rates and stopping rules.
+        world: perception, prediction, mismatch and disturbance compensation of the episode.
+    """
+
+    context: RunContext
+    task: int
+    seed: int
+    scene: ScenarioConfig
+    method: type[Method]
+    params: Any
+    outer_dt: float
+    gains: OSCGains
+    loop: LoopConfig
+    world: dict[str, Any]
+
+
+def setup(config: RunConfig, context: RunContext) -> EpisodeSetup:
+    """The per-run conversion of ``config`` for its episodes (:class:`EpisodeSetup`)."""
+    return EpisodeSetup(
+        context=context,
+        task=config.task,
+        seed=config.seed,
+        scene=with_reference_goal(config.scene(), context.plan.y[0, :3]),
+        method=get_method(config.method.name, config.implementation),
+        params=config.method_config(),
+        outer_dt=1.0 / config.outer_hz,
+        gains=config.gains(),
+        loop=config.loop,
+        world={
+            "perception": config.perception,
+            "prediction": config.prediction,
+            "mismatch": config.mismatch,
+            "disturbance": config.controller.compensation(),
+        },
+    )
+
+
+def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> EpisodeResult:
+    """Environment ``env`` of ``setup``'s task with its method; logged as MCAP to ``log_path``."""
+    context = setup.context
+    method = setup.method.from_plan(context.plan, setup.params, setup.outer_dt, context.robot)
+    scenario = make_scenario(
+        setup.scene, setup.task, setup.seed, env, context.plan.y[0, :3], context.plan.duration
+    )
+    args = (context.robot, method, scenario, setup.gains, setup.loop)
+    if log_path is None:
+        return run_episode(*args, **setup.world)
+    from amex.log import EpisodeLogger
+
+    metadata = {"task": setup.task, "method": method.name, "env": env, "seed": setup.seed}
+    with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
+        return run_episode(*args, logger, **setup.world)
 
 
 def run_one(
@@ -114,34 +186,9 @@ def run_one(
     """Environment ``env`` of the configured task, executed with the configured method.
 
     With ``log_path``, the episode is logged there as MCAP (:class:`amex.log.EpisodeLogger`).
+    A run converts its configuration once (:func:`setup`) and calls :func:`run_setup`.
     """
-    method_cls = get_method(config.method.name, config.implementation)
-    method = method_cls.from_plan(
-        context.plan, config.method_config(), 1.0 / config.outer_hz, context.robot
-    )
-    scenario = make_scenario(
-        config.scenario,
-        config.task,
-        config.seed,
-        env,
-        context.plan.y[0, :3],
-        context.plan.duration,
-    )
-    world: dict[str, Any] = {
-        "perception": config.perception,
-        "prediction": config.prediction,
-        "mismatch": config.mismatch,
-        "disturbance": config.controller.compensation(),
-    }
-    if log_path is None:
-        return run_episode(context.robot, method, scenario, config.gains(), config.loop, **world)
-    from amex.log import EpisodeLogger
-
-    metadata = {"task": config.task, "method": config.method.name, "env": env, "seed": config.seed}
-    with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
-        return run_episode(
-            context.robot, method, scenario, config.gains(), config.loop, logger, **world
-        )
+    return run_setup(setup(config, context), env, log_path)
 
 
 def run(
@@ -199,12 +246,12 @@ def _run_locked(
         len(todo),
     )
     if todo:
-        context = prepare(config)
+        episodes = setup(config, prepare(config))
     for env in todo:
         log_path = None
         if config.log == "full":
             log_path = run_dir / "logs" / f"episode_{env:03d}.mcap"
-        result = run_one(config, context, env, log_path)
+        result = run_setup(episodes, env, log_path)
         store.append(result)
         log.info(
             "env %d: %s, final distance %.4f m at %.2f s, sum sq. acc. %.4g%s%s",

@@ -4,7 +4,7 @@ Every scene is a pure function of ``(config, task, seed, env)``: environment ``e
 the same for every method (a paired comparison). Goal and obstacle motions are closed-form
 functions of time, so the simulation, the methods and the logs all see the same world.
 
-Tasks (DESIGN.md, "The original experiment" and "Our benchmark"):
+Tasks:
 
 * 0: the reference scene itself: goal = reference goal, no motion, no obstacle.
 * 1: static goal on a ``3 x 5 x 10`` grid in a box around the reference goal.
@@ -14,10 +14,12 @@ Tasks (DESIGN.md, "The original experiment" and "Our benchmark"):
   sphere obstacle at the midpoint between the start TCP position and the goal's start.
 * 4: as 3, and the obstacle moves with a per-axis Gaussian velocity for the whole run.
 
-Lengths and speeds of the original scenes are given in config at their original values and
-multiplied by ``scale`` (:mod:`amex.core.scaling`; the Panda's reach is about 0.3x the original
-arm's). The reference goal follows from the robot's start: its TCP plus the original
-start-to-goal offset times ``scale`` (:func:`reference_goal`), unless the config states it.
+Lengths and speeds of the original scenes are stated in the configuration at their original
+values and marked with the power of ``scale`` they carry; the experiment layer converts them once
+(:meth:`amex.experiment.config.RunConfig.scene`), so every function here takes a
+:class:`ScenarioConfig` in scene units [m, m/s]. The reference goal follows from the robot's
+start: its TCP plus the start-to-goal offset (:func:`reference_goal`), unless the config states
+it.
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from amex.core.errors import ConfigError
-from amex.core.scaling import scaled, to_scene_units
+from amex.core.scaling import scaled
 from amex.core.schema import SIGNED
 
 TASKS = (0, 1, 2, 3, 4)
@@ -166,8 +168,7 @@ def reference_goal(config: ScenarioConfig, start_tcp: np.ndarray) -> np.ndarray:
     """
     if len(config.reference_goal):
         return np.asarray(config.reference_goal, dtype=float)
-    offset = to_scene_units(config, config.scale).reference_offset
-    return np.asarray(start_tcp, dtype=float) + np.asarray(offset, dtype=float)
+    return np.asarray(start_tcp, dtype=float) + np.asarray(config.reference_offset, dtype=float)
 
 
 def with_reference_goal(config: ScenarioConfig, start_tcp: np.ndarray) -> ScenarioConfig:
@@ -183,8 +184,7 @@ def plan_goal(config: ScenarioConfig, task: int, start_tcp: np.ndarray) -> np.nd
     """
     goal = reference_goal(config, start_tcp)
     if config.plane_reference and task in (3, 4):
-        offset = to_scene_units(config, config.scale).plane_offset
-        goal = goal + np.array([offset, 0.0, 0.0])
+        goal = goal + np.array([config.plane_offset, 0.0, 0.0])
     return goal
 
 
@@ -193,14 +193,13 @@ def goal_grid(config: ScenarioConfig, task: int) -> np.ndarray:
 
     ``config.reference_goal`` must be stated (:func:`with_reference_goal`).
     """
-    scene = to_scene_units(config, config.scale)
     center = np.asarray(config.reference_goal, dtype=float)
     if center.shape != (3,):
         raise ConfigError("goal_grid needs a stated scenario.reference_goal (with_reference_goal)")
-    size = np.asarray(scene.box_size, dtype=float)
+    size = np.asarray(config.box_size, dtype=float)
     if task == 1:
         return box_grid(center, size, list(config.box_grid))
-    plane_center = center + np.array([scene.plane_offset, 0.0, 0.0])
+    plane_center = center + np.array([config.plane_offset, 0.0, 0.0])
     ny, nz = config.plane_grid
     return box_grid(plane_center, np.array([0.0, size[1], size[2]]), [1, ny, nz])
 
@@ -230,7 +229,6 @@ def make_scenario(
     if task not in TASKS:
         raise ConfigError.invalid("task", task, TASKS)
     config = with_reference_goal(config, start_tcp)
-    scene = to_scene_units(config, config.scale)
     rng = np.random.default_rng(np.random.SeedSequence([seed, task, env]))
     reference = np.asarray(config.reference_goal, dtype=float)
     goal_velocity = np.zeros(3)
@@ -244,13 +242,13 @@ def make_scenario(
     else:
         goal_start = reference.copy()
     if task >= 2:
-        goal_velocity = rng.normal(0.0, scene.goal_speed_std, size=3)
+        goal_velocity = rng.normal(0.0, config.goal_speed_std, size=3)
     if task >= 3:
         obstacle_start = ((np.asarray(start_tcp, dtype=float) + goal_start) / 2)[None, :]
-        radii = np.array([scene.obstacle_radius])
+        radii = np.array([config.obstacle_radius])
         obstacle_velocity = np.zeros((1, 3))
     if task == 4:
-        obstacle_velocity = rng.normal(0.0, scene.obstacle_speed_std, size=(1, 3))
+        obstacle_velocity = rng.normal(0.0, config.obstacle_speed_std, size=(1, 3))
     return Scenario(
         task=task,
         env=env,

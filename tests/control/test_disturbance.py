@@ -20,7 +20,7 @@ from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one
 from amex.methods import METHODS
 from amex.sim.episode import MismatchConfig, Simulation, run_episode
-from amex.sim.scenario import ScenarioConfig, make_scenario
+from amex.sim.scenario import make_scenario
 
 DT = 1e-3
 HOLD_GAINS = OSCGains(pos=PD(400.0, 40.0, 1.0), dir=PD(400.0, 40.0, 0.5))
@@ -43,7 +43,7 @@ def _hold(robot, inner, model, data, seconds, tau_ext=None):
 def _world(robot, mismatch=None):
     """The simulated arm at its start pose, as an episode builds it (Task 0: no obstacles)."""
     start_tcp = robot.task_position(robot.q0)[:3]
-    scenario = make_scenario(ScenarioConfig(), 0, 0, 0, start_tcp, 4.0)
+    scenario = make_scenario(RunConfig().scene(), 0, 0, 0, start_tcp, 4.0)
     sim = Simulation(robot, scenario, 1.0 / DT, mismatch)
     return sim.model, sim.data
 
@@ -155,7 +155,7 @@ def nominal():
 
 def test_switching_compensation_off_reproduces_the_episode_bit_for_bit(nominal):
     config, ctx = nominal
-    scenario = make_scenario(config.scenario, 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    scenario = make_scenario(config.scene(), 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = METHODS["amex"].from_plan(ctx.plan, config.method, 0.01, ctx.robot)
     plain = run_episode(ctx.robot, method, scenario, config.gains(), config.loop)
     via_runner = run_one(config, ctx, 0)  # the runner passes controller.disturbance=none
@@ -191,7 +191,7 @@ def test_observer_on_a_nominal_robot_changes_nominal_episodes_negligibly(method)
 def test_observer_reaches_the_goal_under_strong_mismatch(nominal, mismatch):
     # without compensation AMEX fails every one of these (Task 1, environment 0)
     config, ctx = nominal
-    scenario = make_scenario(config.scenario, 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    scenario = make_scenario(config.scene(), 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = METHODS["amex"].from_plan(ctx.plan, config.method, 0.01, ctx.robot)
     compensation = DisturbanceConfig(kind="observer")
     result = run_episode(

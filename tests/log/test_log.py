@@ -121,7 +121,7 @@ def test_logger_never_overwrites_a_file_it_keeps_it_aside(logged, tmp_path, capl
     _, context, _, _ = logged
     from amex.sim.scenario import make_scenario
 
-    scenario = make_scenario(_config().scenario, 3, 0, 0, context.plan.y[0, :3], 4.0)
+    scenario = make_scenario(_config().scene(), 3, 0, 0, context.plan.y[0, :3], 4.0)
     path = tmp_path / "episode_000.mcap"
     path.write_bytes(b"earlier log")
     (tmp_path / "episode_000.mcap.part").write_bytes(b"interrupted log")
@@ -149,7 +149,7 @@ _CHILD = textwrap.dedent(
     config = RunConfig(task=3, max_time=10.0)
     config.method = DMPConfig()
     ctx = prepare(config)
-    scenario = make_scenario(config.scenario, 3, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    scenario = make_scenario(config.scene(), 3, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = get_method("dmp").from_plan(ctx.plan, config.method, 0.01, ctx.robot)
     logger = EpisodeLogger(Path(sys.argv[1]), ctx.robot, ctx.plan, scenario, {"task": 3})
 

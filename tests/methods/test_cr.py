@@ -160,7 +160,7 @@ def test_after_t_ref_the_tail_replans_towards_a_moved_goal(context):
 def test_plan_keeps_out_of_the_obstacle_margin_in_a_task3_scene(context):
     config, ctx = context
     robot, plan = ctx.robot, ctx.plan
-    scenario = make_scenario(config.scenario, 3, 0, 0, plan.y[0, :3], plan.duration)
+    scenario = make_scenario(config.scene(), 3, 0, 0, plan.y[0, :3], plan.duration)
     centers, radii = scenario.obstacles_at(0.0), scenario.obstacle_radii
     obs = observe(config, 0.0, plan.q[0], np.zeros(7), scenario.goal_at(0.0), centers, radii)
     cr = CR.from_plan(plan, scene(CRConfig()), DT, robot)
@@ -176,7 +176,7 @@ def test_plan_keeps_out_of_the_obstacle_margin_in_a_task3_scene(context):
 def test_realtime_mode_caps_the_iterations(context):
     config, ctx = context
     plan = ctx.plan
-    scenario = make_scenario(config.scenario, 3, 0, 0, plan.y[0, :3], plan.duration)
+    scenario = make_scenario(config.scene(), 3, 0, 0, plan.y[0, :3], plan.duration)
     obs = observe(
         config,
         0.0,
@@ -239,7 +239,7 @@ class _BlindAfterHalfASecond(CR):
 
 def test_solver_failure_ends_the_episode_with_a_solver_reason(context):
     config, ctx = context
-    scenario = make_scenario(config.scenario, 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    scenario = make_scenario(config.scene(), 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = _BlindAfterHalfASecond.from_plan(ctx.plan, scene(CRConfig()), DT, ctx.robot)
     result = run_episode(ctx.robot, method, scenario, config.gains(), config.loop)
     assert result.failure.startswith("solver") and "non-finite goal" in result.failure

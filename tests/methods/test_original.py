@@ -93,7 +93,7 @@ def test_original_dmp_follows_a_moving_goal_a_second_later():
 def test_newton_stops_without_an_update_at_an_optimum_and_agrees_with_levenberg(original):
     config, ctx = original
     robot, plan = ctx.robot, ctx.plan
-    goal = plan_goal(config.scenario, 1, plan.y[0, :3])
+    goal = plan_goal(config.scene(), 1, plan.y[0, :3])
     problem = TrajectoryProblem(
         robot.q0, np.zeros(7), 400, 0.01, goal, np.array(config.scenario.goal_axis),
         costs=CROriginal.from_plan(plan, config.method_config(), 0.01, robot).costs,
@@ -124,7 +124,7 @@ def test_the_original_experiment_composes_the_authors_setup():
     assert (config.robot.name, config.scenario.scale, config.sim) == ("chain7", 1.0, "kinematic")
     assert config.implementation == "original" and config.state_lag
     assert config.scenario.plane_grid == [10, 15]
-    scene = with_reference_goal(config.scenario, np.zeros(3))
+    scene = with_reference_goal(config.scene(), np.zeros(3))
     np.testing.assert_allclose(plan_goal(scene, 3, np.zeros(3)), [1.1, -1.4, 1.7])
     np.testing.assert_allclose(plan_goal(scene, 1, np.zeros(3)), [0.75, -1.4, 1.7])
     box = goal_grid(scene, 1)

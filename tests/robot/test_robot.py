@@ -144,7 +144,7 @@ def test_reference_goal_follows_the_original_offset_times_the_scale(name):
     config = _config(name)
     robot = load_robot(config.robot)
     start = robot.tcp_pose(robot.q0).translation
-    scene = with_reference_goal(config.scenario, start)
+    scene = with_reference_goal(config.scene(), start)
     s = config.scenario.scale
     expected = start + np.array([scale_value(x, s, 1) for x in ORIGINAL_REFERENCE_OFFSET])
     assert np.abs(np.array(scene.reference_goal) - expected).max() < 1e-3  # stated: to the mm
@@ -254,7 +254,7 @@ def test_every_grid_goal_is_reachable_from_q0(name):
     original chain's axis (1, 0, 0) cannot be held at a few goals, as in the original."""
     config = _config(name)
     robot = load_robot(config.robot)
-    scene = with_reference_goal(config.scenario, robot.tcp_pose(robot.q0).translation)
+    scene = with_reference_goal(config.scene(), robot.tcp_pose(robot.q0).translation)
     axis = np.asarray(scene.goal_axis)
     for task in (1, 3):
         results = [reach(robot, goal, axis) for goal in goal_grid(scene, task)]

@@ -65,7 +65,7 @@ class _Wild(Track):
 @pytest.mark.parametrize(("method_cls", "reason"), [(_NaNMethod, "nan_command"), (_Wild, "")])
 def test_numerical_trouble_ends_the_episode_with_a_reason(context, method_cls, reason):
     config, ctx = context
-    scenario = make_scenario(config.scenario, 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    scenario = make_scenario(config.scene(), 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = method_cls.from_plan(ctx.plan, config.method, 0.01)
     result = run_episode(ctx.robot, method, scenario, config.gains(), config.loop)
     assert not result.success
@@ -105,7 +105,7 @@ class _Recorder:
 def test_kinematic_simulation_integrates_the_controller_accelerations_by_explicit_euler(context):
     config, ctx = context
     loop = dataclasses.replace(config.loop, kinematic=True, max_time=0.5)
-    scenario = make_scenario(config.scenario, 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    scenario = make_scenario(config.scene(), 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
     method = Track.from_plan(ctx.plan, config.method, 0.01)
     recorder = _Recorder()
     run_episode(ctx.robot, method, scenario, config.gains(), loop, recorder)

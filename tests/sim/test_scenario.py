@@ -2,14 +2,20 @@ import numpy as np
 import pytest
 
 from amex.core.errors import ConfigError
+from amex.experiment.config import RunConfig
 from amex.robot.ik import solve_ik
 from amex.sim.scenario import ScenarioConfig, goal_grid, make_scenario
 
 START = np.array([0.307, 0.0, 0.487])
 
 
+def _scene(config=None):
+    """The scene in scene units, converted as a run converts it (the experiment layer)."""
+    return RunConfig(scenario=config or ScenarioConfig()).scene()
+
+
 def _make(task, env, seed=0, config=None):
-    return make_scenario(config or ScenarioConfig(), task, seed, env, START, 4.0)
+    return make_scenario(_scene(config), task, seed, env, START, 4.0)
 
 
 def test_task0_is_the_reference_scene():
@@ -20,7 +26,7 @@ def test_task0_is_the_reference_scene():
 
 
 def test_grids_have_the_original_sizes_scaled():
-    config = ScenarioConfig()
+    config = _scene()
     box = goal_grid(config, 1)
     plane = goal_grid(config, 3)
     assert box.shape == (150, 3) and plane.shape == (150, 3)
@@ -59,7 +65,7 @@ def test_speeds_scale_with_the_scene():
 
 
 def test_every_grid_goal_is_reachable_top_down(robot):
-    config = ScenarioConfig()
+    config = _scene()
     for task in (1, 3):
         for goal in goal_grid(config, task):
             res = solve_ik(robot, goal, np.array([0.0, 0.0, -1.0]))
