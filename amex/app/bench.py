@@ -34,8 +34,8 @@ from amex.experiment.config import RunConfig  # noqa: E402
 from amex.experiment.runner import prepare, run_one  # noqa: E402
 from amex.methods import METHODS  # noqa: E402
 from amex.plan.cache import reference_plan, solve_reference  # noqa: E402
-from amex.sim.episode import Simulation  # noqa: E402
 from amex.sim.scenario import make_scenario  # noqa: E402
+from amex.sim.simulation import Simulation  # noqa: E402
 
 
 def _config(method: str, task: int = 0) -> RunConfig:

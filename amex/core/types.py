@@ -38,3 +38,32 @@ class Command(NamedTuple):
     yd: np.ndarray | None = None
     q: np.ndarray | None = None
     qd: np.ndarray | None = None
+
+
+#: The parts of a :class:`Command` and the dimension each must have: task (6) or joints (n).
+_PARTS = (("y", "task"), ("yd", "task"), ("q", "joints"), ("qd", "joints"))
+
+
+def command_problem(command: object, n_joints: int, n_task: int = 6) -> str:
+    """Why ``command`` is no valid :class:`Command` for an ``n_joints`` arm ("" if it is one).
+
+    Valid: a :class:`Command` whose parts are each None or a 1-D float array of the task's size
+    (``y``, ``yd``: ``n_task``) or the arm's (``q``, ``qd``: ``n_joints``); a velocity only with its
+    position. Finiteness is not checked here (a non-finite command is numerical trouble of the
+    episode, not a malformed answer).
+    """
+    if not isinstance(command, Command):
+        return f"{type(command).__name__} instead of a Command(y, yd, q, qd)"
+    sizes = {"task": n_task, "joints": n_joints}
+    for name, kind in _PARTS:
+        part = getattr(command, name)
+        if part is None:
+            continue
+        size = sizes[kind]
+        if not isinstance(part, np.ndarray) or part.dtype != np.float64:
+            return f"{name} of type {type(part).__name__}; valid: a float64 numpy array ({size},)"
+        if part.shape != (size,):
+            return f"{name} of shape {part.shape}; valid: shape ({size},)"
+    if command.yd is not None and command.y is None or command.qd is not None and command.q is None:
+        return "a velocity target without its position target (yd without y, or qd without q)"
+    return ""

@@ -35,7 +35,6 @@ solver failures, end the episode with a recorded ``failure`` reason instead of r
 
 from __future__ import annotations
 
-import copy
 import math
 import time
 from dataclasses import dataclass
@@ -51,11 +50,13 @@ from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
 from amex.core.errors import AmexError, ConfigError, SimulationError
 from amex.core.schema import check_tree
+from amex.core.types import command_problem
 from amex.methods.base import Method, Observation
 from amex.robot import RobotModel
 from amex.sim.metrics import SUCCESS_005_RADIUS, EpisodeResult, paper_sum_sq_acc
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
+from amex.sim.simulation import MismatchConfig, Simulation
 
 
 @dataclass(frozen=True)
@@ -137,62 +138,68 @@ class Recorder(Protocol):
         """Called once when the episode ends, with its result."""
 
 
-@dataclass
-class MismatchConfig:
-    """How the simulated arm differs from the controller's model; defaults: not at all.
-
-    The paper's PR2 "does not accelerate as desired"; this reproduces that in simulation.
-
-    Attributes:
-        mass_scale: factor on every link's mass and inertia in the simulation [-].
-        friction: Coulomb friction (MuJoCo ``frictionloss``) at every joint [N m].
-        damping: viscous damping at every joint [N m s/rad].
-    """
-
-    mass_scale: float = 1.0
-    friction: float = 0.0
-    damping: float = 0.0
-
-    def validate(self) -> None:
-        """Raise :class:`ConfigError` for non-physical values."""
-        if not self.mass_scale > 0:
-            raise ConfigError.invalid("mismatch.mass_scale", self.mass_scale, "a factor > 0")
-        for key in ("friction", "damping"):
-            if not getattr(self, key) >= 0:
-                raise ConfigError.invalid(f"mismatch.{key}", getattr(self, key), "a value >= 0")
-
-
-class Simulation:
-    """MuJoCo world for one scenario: the arm plus its obstacle spheres (mocap bodies)."""
+class _Episode:
+    """What the loop of one episode works with, built before its first step."""
 
     def __init__(
         self,
         robot: RobotModel,
+        method: Method,
         scenario: Scenario,
-        inner_hz: float,
-        mismatch: MismatchConfig | None = None,
+        gains: OSCGains,
+        loop: LoopConfig,
+        perception: PerceptionConfig | None,
+        prediction: PredictionConfig | None,
+        mismatch: MismatchConfig | None,
+        disturbance: DisturbanceConfig | None,
     ) -> None:
-        # a private copy: obstacle sizes and mismatch are per episode, the compiled model is shared
-        self.model = copy.copy(robot.build_mujoco(scenario.n_obstacles, timestep=1.0 / inner_hz))
-        if mismatch is not None:
-            self.model.body_mass[:] *= mismatch.mass_scale
-            self.model.body_inertia[:] *= mismatch.mass_scale
-            self.model.dof_frictionloss[:] = mismatch.friction
-            self.model.dof_damping[:] = mismatch.damping
-        for k, r in enumerate(scenario.obstacle_radii):
-            gid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, f"obstacle_{k}")
-            self.model.geom_size[gid, 0] = r
-            self.model.geom_rbound[gid] = r
-        self.data = mujoco.MjData(self.model)
-        self.data.qpos[:] = robot.q0
-        self.data.qvel[:] = 0.0
-        self.set_obstacles(scenario.obstacles_at(0.0))
-        mujoco.mj_forward(self.model, self.data)
+        self.robot, self.method, self.scenario, self.loop = robot, method, scenario, loop
+        self.sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
+        perception = perception or PerceptionConfig()
+        prediction = prediction or PredictionConfig()
+        self.sensor = None
+        if not perception.exact or prediction.enabled:
+            noise_rng = np.random.default_rng(
+                np.random.SeedSequence([scenario.seed, scenario.task, scenario.env, 1])
+            )
+            self.sensor = GoalSensor(scenario.goal_at, perception, prediction, noise_rng)
+        n = scenario.n_obstacles
+        self.collision = CollisionModel(robot, scenario.obstacle_radii) if n else None
+        self.osc = OperationalSpaceController(robot, gains, self.collision)
+        self.dt = 1.0 / loop.inner_hz
+        self.n_steps = int(math.floor(loop.max_time * loop.inner_hz + 1e-9))
+        # the dynamic step's controller: the OSC itself, or the OSC with disturbance compensation
+        # (a kinematic simulation has no dynamics to compensate: it never uses one)
+        compensation = None if loop.kinematic else disturbance
+        self.inner = make_inner_controller(self.osc, self.dt, compensation)
+        self.q_history = np.empty((self.n_steps + 1, robot.nv))  # joint angles of every step
+        self.compute_times: list[float] = []
 
-    def set_obstacles(self, centers: np.ndarray) -> None:
-        """Move the obstacle spheres, shape (k, 3) [m]."""
-        if len(centers):
-            self.data.mocap_pos[:] = centers
+    def result(
+        self, k: int, t: float, distance: float, sum_sq_acc: float, collided: bool, failure: str
+    ) -> EpisodeResult:
+        """The episode's row, after its last step ``k`` at time ``t``."""
+        scenario, loop, compute_times = self.scenario, self.loop, self.compute_times
+        steps = self.q_history[: k + 1]
+        return EpisodeResult(
+            task=scenario.task,
+            method=self.method.name,
+            env=scenario.env,
+            seed=scenario.seed,
+            success=bool(distance <= loop.success_radius) and not failure,
+            success_005=bool(distance <= SUCCESS_005_RADIUS) and not failure,
+            collided=collided,
+            final_distance=float(distance),
+            final_time=float(t),
+            sum_sq_acc=float(sum_sq_acc),
+            compute_time_median=float(np.median(compute_times)) if compute_times else math.nan,
+            compute_time_mean=float(np.mean(compute_times)) if compute_times else math.nan,
+            failure=failure,
+            sum_sq_acc_paper=(
+                paper_sum_sq_acc(steps, self.dt) if np.isfinite(steps).all() else math.nan
+            ),
+            int_sq_acc=float(sum_sq_acc) * self.dt,
+        )
 
 
 def run_episode(
@@ -222,22 +229,26 @@ def run_episode(
         disturbance: compensation of unmodelled torques in the inner controller (default: none,
             the paper's controller); see :mod:`amex.control.disturbance`.
     """
-    sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
-    perception = perception or PerceptionConfig()
-    prediction = prediction or PredictionConfig()
-    sensor = None
-    if not perception.exact or prediction.enabled:
-        noise_rng = np.random.default_rng(
-            np.random.SeedSequence([scenario.seed, scenario.task, scenario.env, 1])
-        )
-        sensor = GoalSensor(scenario.goal_at, perception, prediction, noise_rng)
-    collision = CollisionModel(robot, scenario.obstacle_radii) if scenario.n_obstacles else None
-    osc = OperationalSpaceController(robot, gains, collision)
+    episode = _Episode(
+        robot, method, scenario, gains, loop, perception, prediction, mismatch, disturbance
+    )
+    result = _run(episode, recorder)
+    if recorder is not None:
+        recorder.finish(result)
+    return result
+
+
+def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
+    """The two-rate loop (module notes), one function: its locals are the 1 kHz loop's state.
+
+    Longer than 80 lines on purpose: splitting the inner step into calls would cost attribute
+    look-ups and calls at every one of up to 10,000 steps an episode.
+    """
+    robot, method, scenario, loop = e.robot, e.method, e.scenario, e.loop
+    sim, sensor, collision, osc, inner = e.sim, e.sensor, e.collision, e.osc, e.inner
     pdata = robot.model.createData()
     mjm, mjd = sim.model, sim.data
-    substeps = loop.substeps
-    dt = 1.0 / loop.inner_hz
-    n_steps = int(math.floor(loop.max_time * loop.inner_hz + 1e-9))
+    substeps, dt, n_steps = loop.substeps, e.dt, e.n_steps
     speed_limit = loop.speed_limit_factor * robot.velocity_limit
     goal_axis = scenario.goal_axis
     radii = scenario.obstacle_radii
@@ -245,22 +256,17 @@ def run_episode(
     obstacles = scenario.obstacles_at(0.0)
     if collision is not None:
         collision.set_obstacles(obstacles)
-
     goal = scenario.goal_at(0.0)
     gx, gy, gz = goal.tolist()
     goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
     kinematic = loop.kinematic
-    # the dynamic step's controller: the OSC itself, or the OSC with disturbance compensation (a
-    # kinematic simulation has no dynamics to compensate: it never uses one)
-    inner = make_inner_controller(osc, dt, None if kinematic else disturbance)
     detect_contacts = kinematic and scenario.n_obstacles > 0
     no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
-    q_history = np.empty((n_steps + 1, robot.nv))  # joint angles of every inner step
+    q_history, compute_times = e.q_history, e.compute_times
     lag = loop.state_lag
     seen_tcp: list[float] | None = None  # the lagging TCP position of the stop rule
     seen_y: np.ndarray | None = None  # the lagging task state methods see
     seen_yd: np.ndarray | None = None
-    compute_times: list[float] = []
     sum_sq_acc = 0.0
     collided = False
     failure = ""
@@ -303,14 +309,9 @@ def run_episode(
                     obstacles=obstacles,
                     obstacle_radii=radii,
                 )
-                if k == 0:
-                    method.reset(obs)
-                tic = time.perf_counter_ns()
-                command = method.step(obs)
-                compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
+                command = _method_step(method, obs, k == 0, compute_times, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
                     break
-                _check_command(command)
             if lag:  # what the next step's stop rule and observation see
                 seen_tcp = state.y_list[:3]
                 if (k + 1) % substeps == 0:
@@ -336,32 +337,40 @@ def run_episode(
                 if recorder is not None:
                     internals = method.internals()
                     recorder.record(StepRecord(t, state, obs, command, internals, tau, qacc))
-    except SimulationError as e:
-        failure = e.reason
-    except AmexError as e:
-        failure = f"solver: {e}"
-    final_time = t
-    steps = q_history[: k + 1]
-    result = EpisodeResult(
-        task=scenario.task,
-        method=method.name,
-        env=scenario.env,
-        seed=scenario.seed,
-        success=bool(distance <= loop.success_radius) and not failure,
-        success_005=bool(distance <= SUCCESS_005_RADIUS) and not failure,
-        collided=collided,
-        final_distance=float(distance),
-        final_time=float(final_time),
-        sum_sq_acc=float(sum_sq_acc),
-        compute_time_median=float(np.median(compute_times)) if compute_times else math.nan,
-        compute_time_mean=float(np.mean(compute_times)) if compute_times else math.nan,
-        failure=failure,
-        sum_sq_acc_paper=paper_sum_sq_acc(steps, dt) if np.isfinite(steps).all() else math.nan,
-        int_sq_acc=float(sum_sq_acc) * dt,
-    )
-    if recorder is not None:
-        recorder.finish(result)
-    return result
+    except SimulationError as error:
+        failure = error.reason
+    except AmexError as error:
+        failure = f"solver: {error}"
+    return e.result(k, t, distance, sum_sq_acc, collided, failure)
+
+
+def _method_step(
+    method: Method, obs: Observation, first: bool, compute_times: list[float], n_joints: int
+) -> Command:
+    """The method's outer step (reset first at t = 0), timed; its answer checked.
+
+    A malformed answer, or any exception of a method other than ours (a plugin: an
+    ``Exception`` or ``SystemExit``), ends the episode as a :class:`SimulationError` whose reason
+    says what the method did; an :class:`AmexError` (a failed solve) passes on as such.
+    """
+    try:
+        if first:
+            method.reset(obs)
+        tic = time.perf_counter_ns()
+        command = method.step(obs)
+        compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
+    except AmexError:
+        raise
+    except (Exception, SystemExit) as error:
+        text = f"{type(error).__name__}: {error}".strip()[:300]
+        raise SimulationError(f"method: {text}", text) from error
+    if method.finished:
+        return command
+    problem = command_problem(command, n_joints)
+    if problem:
+        raise SimulationError(f"bad_command: {problem}", problem)
+    _check_command(command)
+    return command
 
 
 def _check_command(command: Command) -> None:

@@ -19,8 +19,9 @@ from amex.core.errors import ConfigError
 from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one
 from amex.methods import METHODS
-from amex.sim.episode import MismatchConfig, Simulation, run_episode
+from amex.sim.episode import run_episode
 from amex.sim.scenario import make_scenario
+from amex.sim.simulation import MismatchConfig, Simulation
 
 DT = 1e-3
 HOLD_GAINS = OSCGains(pos=PD(400.0, 40.0, 1.0), dir=PD(400.0, 40.0, 0.5))
