@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import sys
 from collections.abc import Sequence
@@ -24,8 +23,7 @@ from typing import Any, NoReturn
 from amex.app.argparsing import OneLineParser, fail
 from amex.core.durable import create_new
 from amex.core.errors import AmexError, LogError, LogExistsError, WriteError
-from amex.log.plot3d import set_equal_axes_3d
-from amex.log.reader import LogData, read_log, recover, topics_with_numbers
+from amex.log.reader import LogData, read_log, recover
 from amex.log.serve import DEFAULT_PORT
 
 PROG = "amex-log"
@@ -181,11 +179,7 @@ def _short(value: Any) -> str:
 
 def plot(args: argparse.Namespace) -> None:
     """Save a PNG: TCP/goal/reference paths, distance to goal, phase, joint accelerations."""
-    import matplotlib
-    import numpy as np
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from amex.log.plot import plot_episode
 
     output = args.output or args.file.with_suffix(".png")
     if output.is_dir():
@@ -198,110 +192,10 @@ def plot(args: argparse.Namespace) -> None:
     if "/tcp" not in data.channels or not data.messages["/tcp"]:
         raise LogError(f"{args.file} has no /tcp messages to plot (not an amex episode log?)")
 
-    fig = plt.figure(figsize=(12, 8.5), layout="constrained")
-    ax3 = fig.add_subplot(2, 2, 1, projection="3d")
-    draw_paths(ax3, data)
-    t = data.times("/goal")
-    ax = fig.add_subplot(2, 2, 2)
-    ax.plot(t, data.series("/goal", "distance"), color="C0")
-    ax.axhline(0.03, color="0.5", ls="--", lw=1, label="success radius 0.03 m")
-    ax.set(xlabel="t [s]", ylabel="distance TCP - goal [m]", title="Distance to goal")
-    ax.legend(loc="upper right")
-    ax = fig.add_subplot(2, 2, 3)
-    phase_keys = [k for k in ("s", "phase", "phase_rate", "index") if _has(data, "/method", k)]
-    title = "Method internals: phase (AMEX s, DMP x)"
-    scaled = not phase_keys  # no phase: every number, each divided by its largest magnitude
-    if scaled:
-        phase_keys = [k for k in _scalar_keys(data, "/method") if k != "t"]
-        title = "Method internals, each divided by its largest |value|"
-    for key in phase_keys:
-        values = data.series("/method", key)
-        peak = float(np.nanmax(np.abs(values))) if scaled and np.isfinite(values).any() else 1.0
-        label = f"{key} / {peak:.3g}" if scaled else key
-        ax.plot(data.times("/method"), values / (peak or 1.0), label=label)
-    ax.set(xlabel="t [s]", title=title)
-    if phase_keys:
-        ax.legend(loc="best")
-    else:
-        ax.text(0.5, 0.5, "no numeric internals logged", ha="center", transform=ax.transAxes)
-    ax = fig.add_subplot(2, 2, 4)
-    qdd = data.joints("acceleration")
-    if qdd.size:
-        for j in range(qdd.shape[1]):
-            ax.plot(data.times("/joint_states"), qdd[:, j], lw=1, label=f"joint {j + 1}")
-        ax.legend(loc="upper right", ncol=2, fontsize="small")
-    ax.set(xlabel="t [s]", ylabel="q_ddot [rad/s^2]", title="Joint accelerations (100 Hz)")
-    fig.suptitle(_title(data))
-    output.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(output, dpi=110)
-    plt.close(fig)
+    plot_episode(data, output)
     if data.damage:
         sys.stderr.write(f"{PROG}: note: {_truncation_line(data)}\n")
     sys.stdout.write(f"wrote {output}\n")
-
-
-def _title(data: LogData) -> str:
-    episode = data.metadata.get("episode", {})
-    name = " ".join(f"{k}={episode[k]}" for k in ("task", "method", "env", "seed") if k in episode)
-    outcome = data.outcome or {}
-    tail = ""
-    if "success" in outcome:
-        tail = (
-            f" - {'success' if outcome['success'] else 'no success'}, final distance "
-            f"{outcome.get('final_distance', math.nan):.3f} m at "
-            f"{outcome.get('final_time', math.nan):.2f} s"
-        )
-    if data.damage:
-        tail += f" (recovered from a {data.damage} file)"
-    return (name or str(data.path.name)) + tail
-
-
-def _has(data: LogData, topic: str, key: str) -> bool:
-    return any(isinstance(m.data, dict) and key in m.data for m in data.messages.get(topic, []))
-
-
-def _scalar_keys(data: LogData, topic: str) -> list[str]:
-    keys: dict[str, None] = {}
-    for m in data.messages.get(topic, []):
-        if isinstance(m.data, dict):
-            for k, v in m.data.items():
-                if isinstance(v, (int, float)) and not isinstance(v, bool):
-                    keys[k] = None
-    return list(keys)
-
-
-def draw_paths(ax: Any, data: LogData) -> None:
-    """On 3-D axes: reference plan, executed TCP path, goal path and obstacle spheres."""
-    import numpy as np
-
-    ref = data.reference_path()
-    tcp = data.series("/tcp", "position")
-    goal = data.series("/goal", "position")
-    if len(ref):
-        ax.plot(*ref.T, color="0.45", ls="--", lw=1.5, label="reference plan")
-    ax.plot(*tcp.T, color="C0", lw=2, label="executed TCP path")
-    ax.plot(*goal.T, color="C2", lw=2, label="goal path")
-    ax.scatter(*goal[-1], color="C2", s=40, marker="o", label="goal (end)")
-    ax.scatter(*tcp[0], color="k", s=25, marker="s", label="start")
-    scenario = data.metadata.get("scenario", {})
-    centers = np.asarray(scenario.get("obstacle_start") or np.zeros((0, 3)), dtype=float)
-    radii = np.asarray(scenario.get("obstacle_radii") or [], dtype=float)
-    u, v = np.mgrid[0 : 2 * np.pi : 24j, 0 : np.pi : 12j]
-    for c, r in zip(centers.reshape(-1, 3), radii, strict=False):
-        ax.plot_surface(
-            c[0] + r * np.cos(u) * np.sin(v),
-            c[1] + r * np.sin(u) * np.sin(v),
-            c[2] + r * np.cos(v),
-            color="C3",
-            alpha=0.3,
-            linewidth=0,
-        )
-    if len(radii):
-        ax.plot([], [], color="C3", lw=6, alpha=0.4, label="obstacle")
-    points = np.concatenate([p for p in (ref, tcp, goal) if len(p)])
-    set_equal_axes_3d(ax, points, pad=1.1, min_half=0.05)
-    ax.legend(loc="center left", bbox_to_anchor=(1.2, 0.5), fontsize="small")
-    ax.set_title("TCP and goal in task space")
 
 
 def export(args: argparse.Namespace) -> None:
@@ -315,92 +209,14 @@ def export(args: argparse.Namespace) -> None:
                 "--format parquet needs pyarrow, which is not installed: pip install pyarrow "
                 "(or use --format csv)"
             ) from None
-    import pandas as pd
+    from amex.log.export import export_tables
 
     out_dir = args.output or args.file.with_name(args.file.stem + "_export")
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written = []
-    tables: dict[str, Any] = {t: _table(data, t) for t in topics_with_numbers(data)}
-    if data.channels.get("/joint_states"):
-        tables["/joints"] = _joint_table(data)
-    for topic, rows in tables.items():
-        frame = pd.DataFrame(rows)
-        name = topic.strip("/").replace("/", "_") or "root"
-        path = out_dir / f"{name}.{args.format}"
-        if args.format == "csv":
-            frame.to_csv(path, index=False)
-        else:
-            frame.to_parquet(path, index=False)
-        written.append(path)
-    meta = out_dir / "metadata.json"
-    meta.write_text(
-        json.dumps(
-            {"truncated": data.truncated, "corrupt": data.corrupt, "note": data.note}
-            | data.metadata,
-            indent=2,
-        )
-        + "\n"
-    )
-    written.append(meta)
+    written = export_tables(data, out_dir, args.format)
     if data.damage:
         sys.stderr.write(f"{PROG}: note: {_truncation_line(data)}\n")
     for path in written:
         sys.stdout.write(f"wrote {path}\n")
-
-
-def _table(data: LogData, topic: str) -> list[dict[str, Any]]:
-    """Rows of ``topic``: ``time`` [s] plus the flattened message (lists of lists: rows)."""
-    rows: list[dict[str, Any]] = []
-    for m in data.messages[topic]:
-        if not isinstance(m.data, dict):
-            continue
-        nested = {k: v for k, v in m.data.items() if _is_matrix(v)}
-        if nested:  # e.g. /reference: one row per sample
-            for key, matrix in nested.items():
-                for i, sample in enumerate(matrix):
-                    flat = {"index": i, **_flatten(sample, key)}
-                    if "dt" in m.data:
-                        flat = {"time": i * m.data["dt"], **flat}
-                    rows.append(flat)
-            continue
-        row: dict[str, Any] = {"time": m.log_time * 1e-9}
-        for key, value in m.data.items():
-            if isinstance(value, list):
-                row.update({f"{key}_{j}": x for j, x in enumerate(value)})
-            elif isinstance(value, dict):
-                row[key] = json.dumps(value)
-            else:
-                row[key] = value
-        rows.append(row)
-    return rows
-
-
-def _joint_table(data: LogData) -> dict[str, Any]:
-    """``/joint_states`` as columns ``time, q_0.., qd_0.., qdd_0.., tau_0..``."""
-    table: dict[str, Any] = {"time": data.times("/joint_states")}
-    for prefix, field in (("q", "position"), ("qd", "velocity"), ("qdd", "acceleration"),
-                          ("tau", "effort")):  # fmt: skip
-        values = data.joints(field)
-        table.update({f"{prefix}_{j}": values[:, j] for j in range(values.shape[1])})
-    return table
-
-
-def _is_matrix(value: Any) -> bool:
-    """A list of lists or of objects (``/reference``'s samples)."""
-    return isinstance(value, list) and bool(value) and isinstance(value[0], (list, dict))
-
-
-def _flatten(sample: Any, key: str) -> dict[str, Any]:
-    """One sample as columns: a list as ``key_0, key_1..``, an object's lists as ``name_0..``."""
-    if isinstance(sample, list):
-        return {f"{key}_{j}": x for j, x in enumerate(sample)}
-    flat: dict[str, Any] = {}
-    for name, value in sample.items():
-        if isinstance(value, list):
-            flat.update({f"{name}_{j}": x for j, x in enumerate(value)})
-        else:
-            flat[name] = value
-    return flat
 
 
 def recover_cmd(args: argparse.Namespace) -> None:
