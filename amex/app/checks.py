@@ -21,11 +21,10 @@ from amex.app.compose import (
     load_config,
     parse_overrides,
     shard_suffix,
+    use_command_line,
 )
 from amex.core.durable import RunLock
 from amex.core.errors import ConfigError, LaunchError, StoreError, UsageError
-
-FLAGS_WITH_VALUE = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd"}
 
 
 def command_line_jobs(overrides: list[str], multirun: bool) -> tuple[list[list[str]], list[str]]:
@@ -66,18 +65,7 @@ def validate_command_line(argv: list[str]) -> None:
     from amex.experiment.runner import preflight
     from amex.experiment.shards import ShardSpec
 
-    overrides: list[str] = []
-    skip = False
-    for arg in argv:
-        if skip:
-            skip = False
-            continue
-        if arg in FLAGS_WITH_VALUE:
-            skip = True
-            continue
-        if arg.startswith("-"):
-            continue
-        overrides.append(arg)
+    overrides = use_command_line(argv)
     multirun = "-m" in argv or "--multirun" in argv
     jobs, hydra_overrides = command_line_jobs(overrides, multirun)
     checked: dict[tuple[str, ...], Any] = {}

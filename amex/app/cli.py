@@ -18,12 +18,13 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import sys  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 from amex.app.session import closing_line, fail  # noqa: E402  (first: the command's start)
 from amex.core.errors import JobFailed, UsageError  # noqa: E402
 
-INFORMATIONAL = {"--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--version"}
+INFORMATIONAL = {
+    "--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--shell-completion", "-sc"
+}
 
 
 def run_main() -> None:
@@ -35,10 +36,20 @@ def run_main() -> None:
     argv = multirun_flags + [a for a in sys.argv[1:] if a not in multirun_flags]
     sys.argv[1:] = argv  # Hydra's parser wants -m before the overrides; accept it anywhere
     debug = os.environ.get("AMEX_DEBUG") == "1"
+    if "--version" in argv:
+        from amex import __version__
+
+        sys.stdout.write(f"{PROG} {__version__}\n")
+        return
     if "--help" in argv or "-h" in argv:
+        from amex.app import compose
         from amex.app.usage import help_text
 
-        sys.stdout.write(help_text(Path(CONF_DIR), PROG))
+        try:
+            compose.use_command_line(argv)
+        except UsageError as e:
+            fail(str(e))
+        sys.stdout.write(help_text(compose.SOURCES.conf_dirs(), PROG))
         return
     from amex.app.progress import SWEEPS
 

@@ -12,14 +12,109 @@ from __future__ import annotations
 import contextlib
 import re
 from collections.abc import Iterator
-from dataclasses import is_dataclass
+from dataclasses import dataclass, is_dataclass
 from pathlib import Path
 from typing import Any
 
 from amex.core.errors import ConfigError, LaunchError, UsageError
 
-CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
 PROG = "amex-run"
+
+
+def packaged_conf() -> Path:
+    """Amex's own configs: ``amex/conf`` of an installed wheel, else the checkout's ``conf/``.
+
+    The repository keeps ``conf/`` at its top level; the wheel ships it inside the package
+    (``pyproject.toml`` maps it to ``amex.conf``), where an editable install has none.
+    """
+    package = Path(__file__).resolve().parents[1]
+    installed = package / "conf"
+    return installed if (installed / "config.yaml").is_file() else package.parent / "conf"
+
+
+CONF_DIR = str(packaged_conf())
+#: Flags of Hydra's that take a value (the rest of the command line is overrides).
+FLAGS_WITH_VALUE = {"--config-path", "-cp", "--config-name", "-cn", "--config-dir", "-cd"}
+
+
+@dataclass
+class Sources:
+    """Where this command's configs come from besides amex's own (:data:`CONF_DIR`).
+
+    Attributes:
+        dirs: the user's config directories, searched before amex's: ``--config-dir`` and the
+            ``file://`` entries of a ``hydra.searchpath=[...]`` override, in that order.
+        name: the primary config (``--config-name``; amex's ``config``).
+    """
+
+    dirs: tuple[str, ...] = ()
+    name: str = "config"
+
+    def overrides(self) -> list[str]:
+        """The ``hydra.searchpath`` override that adds :attr:`dirs` to a composition."""
+        if not self.dirs:
+            return []
+        return ["hydra.searchpath=[" + ",".join(f"file://{d}" for d in self.dirs) + "]"]
+
+    def conf_dirs(self) -> list[Path]:
+        """Every config directory, the user's first (what ``--help`` lists)."""
+        return [*(Path(d) for d in self.dirs), Path(CONF_DIR)]
+
+
+#: This process's sources (:func:`use_command_line`).
+SOURCES = Sources()
+
+
+def use_command_line(argv: list[str]) -> list[str]:
+    """Take ``--config-dir``, ``--config-name`` and ``hydra.searchpath`` from ``argv``.
+
+    Sets :data:`SOURCES` for every composition of this process and returns the overrides of
+    ``argv`` (its arguments that are no flags nor flag values).
+
+    Raises:
+        UsageError: a ``--config-dir`` that is no directory, or ``--config-path`` (amex's
+            primary config is its own; ``--config-dir`` adds yours to it).
+    """
+    global SOURCES
+    dirs: list[str] = []
+    name = "config"
+    overrides: list[str] = []
+    args = iter(argv)
+    for arg in args:
+        flag, eq, inline = arg.partition("=")
+        if flag in FLAGS_WITH_VALUE:
+            value = inline if eq else next(args, "")
+            if flag in ("--config-dir", "-cd"):
+                path = Path(value).expanduser().resolve()
+                if not path.is_dir():
+                    raise UsageError(
+                        f"invalid --config-dir {value!r}: not a directory; valid: a directory "
+                        "holding your experiment/, robot/, method/ or study/ configs"
+                    )
+                dirs.append(str(path))
+            elif flag in ("--config-name", "-cn"):
+                name = value.removesuffix(".yaml")
+            else:
+                raise UsageError(
+                    f"invalid {flag} {value!r}; valid: --config-dir DIR, which adds your "
+                    "configs to amex's (amex's primary config stays its own)"
+                )
+            continue
+        if arg.startswith("-"):
+            continue
+        if arg.startswith("hydra.searchpath="):
+            dirs += [d.removeprefix("file://") for d in _list_value(arg.split("=", 1)[1])]
+        overrides.append(arg)
+    SOURCES = Sources(tuple(dict.fromkeys(dirs)), name)
+    return overrides
+
+
+def _list_value(text: str) -> list[str]:
+    """The items of a Hydra list value ``[a,b]`` (or a single value)."""
+    inner = text.strip()
+    if inner.startswith("[") and inner.endswith("]"):
+        inner = inner[1:-1]
+    return [item.strip().strip("'\"") for item in inner.split(",") if item.strip()]
 
 
 def shard_suffix(shard: Any, shards: Any) -> str:
@@ -79,10 +174,22 @@ def group_options(group: str) -> list[str]:
     """The options of a Hydra config group (``method``, ``hydra/launcher``, ``experiment``)."""
     try:
         with initialized() as loader:
-            names = loader.get_group_options(group)
+            names = _options(loader, group, "")
     except Exception:  # only for a message: never fail because of it
         return []
-    return sorted(n for n in names if not n.startswith(("schema_", "_")))
+    return sorted(n for n in names if not n.rpartition("/")[2].startswith(("schema_", "_")))
+
+
+def _options(loader: Any, group: str, prefix: str) -> list[str]:
+    """The options of ``group`` and of its subgroups (``ablation/1_harness``), recursively."""
+    extra = SOURCES.overrides()
+    names = [
+        prefix + n
+        for n in loader.get_group_options(group, config_name=SOURCES.name, overrides=extra)
+    ]
+    for sub in loader.list_groups(group):
+        names += _options(loader, f"{group}/{sub}", f"{prefix}{sub}/")
+    return names
 
 
 def load_config(overrides: list[str]) -> Any:
@@ -100,7 +207,7 @@ def load_config(overrides: list[str]) -> Any:
             raise UsageError(f"invalid method={value!r}; valid: {', '.join(sorted(METHODS))}")
     try:
         with initialized():
-            cfg = compose(config_name="config", overrides=overrides)
+            cfg = compose(config_name=SOURCES.name, overrides=[*overrides, *SOURCES.overrides()])
         config: Any = OmegaConf.to_object(cfg)
     except ConfigError:
         raise
@@ -123,9 +230,10 @@ def composed(overrides: list[str], hydra_overrides: list[str]) -> Iterator[Any]:
     setup_globals()  # the ${now:...} resolver of the default directories
     try:
         with initialized():
+            user = [o for o in hydra_overrides if not o.startswith("hydra.searchpath=")]
             cfg = compose(
-                config_name="config",
-                overrides=[*overrides, *hydra_overrides],
+                config_name=SOURCES.name,
+                overrides=[*overrides, *user, *SOURCES.overrides()],
                 return_hydra_config=True,
             )
         yield cfg

@@ -41,7 +41,10 @@ class _Parser(OneLineParser):
 
 
 def _parser() -> _Parser:
+    from amex import __version__
+
     parser = _Parser(prog=PROG, description="Inspect amex episode logs (MCAP).")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("info", help="channels, message counts, duration, config and outcome")
     p.add_argument("file", type=Path, metavar="FILE")

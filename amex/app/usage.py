@@ -85,11 +85,24 @@ def _indent(text: str) -> list[str]:
     return textwrap.wrap(text, 96, initial_indent="      ", subsequent_indent="      ")
 
 
-def help_text(conf_dir: Path, prog: str = "amex-run") -> str:
-    """The whole ``--help`` text."""
+def _options_of(conf_dirs: list[Path], group: str, recursive: bool = False) -> list[Path]:
+    """The YAML files of a config group, the first directory's winning (``--config-dir``'s)."""
+    found: dict[str, Path] = {}
+    for conf_dir in conf_dirs:
+        base = conf_dir / group
+        for path in sorted(base.rglob("*.yaml") if recursive else base.glob("*.yaml")):
+            found.setdefault(path.relative_to(base).with_suffix("").as_posix(), path)
+    return [found[name] for name in sorted(found)]
+
+
+def help_text(conf_dirs: Path | list[Path], prog: str = "amex-run") -> str:
+    """The whole ``--help`` text; ``conf_dirs``: the user's config directories, then amex's."""
     from amex.methods import BUILTIN_METHODS, METHODS
 
+    dirs = [conf_dirs] if isinstance(conf_dirs, Path) else list(conf_dirs)
+    conf_dir = dirs[-1]  # amex's own: the primary config and the built-in methods
     methods = []
+    user_methods = {p.stem: p for p in _options_of(dirs[:-1], "method")}
     for name in sorted(METHODS):
         yaml_file = conf_dir / "method" / f"{name}.yaml"
         if name in BUILTIN_METHODS and yaml_file.exists():
@@ -98,13 +111,20 @@ def help_text(conf_dir: Path, prog: str = "amex-run") -> str:
             doc = (METHODS[name].__doc__ or "").strip().splitlines()
             text = (doc[0] if doc else "") + f" (plugin: {METHODS[name].__module__})"
         methods.append((name, text))
-    robots = [(p.stem, describe(p)) for p in sorted((conf_dir / "robot").glob("*.yaml"))]
-    experiment_dir = conf_dir / "experiment"
-    experiments = [
-        (p.relative_to(experiment_dir).with_suffix("").as_posix(), describe(p))
-        for p in sorted(experiment_dir.rglob("*.yaml"))
-    ]
-    studies = [(p.stem, describe(p)) for p in sorted((conf_dir / "study").glob("*.yaml"))]
+    methods += [(n, describe(p) + " (yours)") for n, p in user_methods.items() if n not in METHODS]
+
+    def listed(group: str, recursive: bool = False) -> list[tuple[str, str]]:
+        base_of = {p: d / group for d in dirs for p in _options_of([d], group, recursive)}
+        rows = []
+        for path in _options_of(dirs, group, recursive):
+            name = path.relative_to(base_of[path]).with_suffix("").as_posix()
+            mine = "" if base_of[path].parent == conf_dir else " (yours)"
+            rows.append((name, describe(path) + mine))
+        return rows
+
+    robots = listed("robot")
+    experiments = listed("experiment", recursive=True)
+    studies = listed("study")
     config_yaml = conf_dir / "config.yaml"
     options, groups = _options(config_yaml)
     composed = yaml.safe_load(config_yaml.read_text())
