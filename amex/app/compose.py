@@ -139,10 +139,20 @@ register_resolvers()  # also in sweep workers, which import this module with the
 
 def register_schemas() -> None:
     """``RunConfig`` and every method's config dataclass in Hydra's ConfigStore (idempotent)."""
+    import importlib
+
     from hydra.core.config_store import ConfigStore
 
     from amex.experiment.config import RunConfig
     from amex.methods import BUILTIN_METHODS, METHODS
+
+    from hydra.core.plugins import Plugins
+
+    # our sweeper (hydra/sweeper=amex): Hydra finds plugins by listing the hydra_plugins
+    # namespace, which an editable install cannot list; importing the module registers its
+    # config, Hydra's public register() the class (installed wheels are found either way)
+    plugin = importlib.import_module("hydra_plugins.amex_sweeper.amex_sweeper")
+    Plugins.instance().register(plugin.AmexSweeper)
 
     cs = ConfigStore.instance()
     cs.store(name="run_schema", node=RunConfig)
