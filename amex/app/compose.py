@@ -142,11 +142,10 @@ def register_schemas() -> None:
     import importlib
 
     from hydra.core.config_store import ConfigStore
+    from hydra.core.plugins import Plugins
 
     from amex.experiment.config import RunConfig
     from amex.methods import BUILTIN_METHODS, METHODS
-
-    from hydra.core.plugins import Plugins
 
     # our sweeper (hydra/sweeper=amex): Hydra finds plugins by listing the hydra_plugins
     # namespace, which an editable install cannot list; importing the module registers its
