@@ -296,6 +296,9 @@ def explain(error: Exception, overrides: list[str] | None = None) -> str:
         parts.append(str(seen))
         seen = seen.__cause__ or seen.__context__  # type: ignore[assignment]
     text = "\n".join(parts)
+    broken = _broken_yaml(error)
+    if broken:
+        return broken
     m = re.search(r"Could not find '([\w/]+)/([^'/]*)'", text)
     if m:
         group, value = m.groups()
@@ -319,3 +322,30 @@ def explain(error: Exception, overrides: list[str] | None = None) -> str:
         return f"invalid {name}={m.group(1)!r}; valid: a value of type {m.group(2)}"
     first = text.strip().splitlines()[0] if text.strip() else type(error).__name__
     return first
+
+
+def _broken_yaml(error: BaseException) -> str:
+    """``invalid YAML in <file>, line L, column C: <problem>`` if a config file does not parse.
+
+    Hydra's YAML error names no file; the config directories are few, so they are parsed again
+    to find the one that fails.
+    """
+    import yaml
+
+    seen: BaseException | None = error
+    while seen is not None and not isinstance(seen, yaml.YAMLError):
+        seen = seen.__cause__ or seen.__context__
+    if seen is None:
+        return ""
+    for conf_dir in SOURCES.conf_dirs():
+        for path in sorted(conf_dir.rglob("*.yaml")):
+            try:
+                yaml.safe_load(path.read_text())
+            except yaml.MarkedYAMLError as e:
+                mark = e.problem_mark or e.context_mark
+                where = f", line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+                problem = " ".join(str(e.problem or e.context or "").split())
+                return f"invalid YAML in {path}{where}: {problem}"
+            except (OSError, yaml.YAMLError):
+                continue
+    return f"invalid YAML in a config file: {' '.join(str(seen).split())}"

@@ -62,9 +62,9 @@ def task(cfg: Any) -> None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
     from omegaconf import OmegaConf
-    from tqdm import tqdm
     from tqdm.contrib.logging import logging_redirect_tqdm
 
+    from amex.app.progress import progress_bar, run_line
     from amex.experiment.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
@@ -94,7 +94,7 @@ def task(cfg: Any) -> None:
         with (
             job_guard(run_dir, multirun=False),
             logging_redirect_tqdm(),
-            tqdm(total=episodes, desc=label, unit="ep") as bar,
+            progress_bar(episodes, label) as bar,
         ):
             for handler in logging.getLogger().handlers:  # tqdm's console handler: warnings
                 if type(handler).__name__ == "_TqdmLoggingHandler":  # only; the record: run.log
@@ -105,8 +105,8 @@ def task(cfg: Any) -> None:
                 nonlocal successes, done
                 successes += int(result.success)
                 done += 1
-                bar.set_postfix(success=f"{successes}/{done}")
-                bar.update(1)
+                bar.set_postfix(success=f"{successes}/{done}", refresh=False)
+                bar.update(1)  # one refresh: the count and its successes together
 
             kept = kept_episodes(run_dir, config)
             if kept:
@@ -116,11 +116,6 @@ def task(cfg: Any) -> None:
                     file=sys.stderr,
                 )
             summary = run(config, run_dir, progress)
-    s = summary["success"]["mean"]
-    t = summary["final_time"]
-    print(
-        f"{label}: success {s:.3f}  final time {t['mean']:.2f} +- {t['two_std']:.2f} s  "
-        f"({summary['failures']} failures)",
-        file=sys.stderr,
-    )
+    if not quiet or os.environ.get("SUBMITIT_EXECUTOR"):  # a local sweep's launcher says it
+        print(f"{label}: {run_line(summary)}", file=sys.stderr)
     print(run_dir, flush=True)

@@ -27,6 +27,8 @@ from amex.log.reader import LogData, read_log, recover
 from amex.log.serve import DEFAULT_PORT
 
 PROG = "amex-log"
+MAX_VIDEO_SIDE = 4096  # [px] one panel
+MAX_VIDEO_FPS = 240.0  # [1/s]
 
 
 def _fail(message: str) -> NoReturn:
@@ -298,6 +300,14 @@ def video(args: argparse.Namespace) -> None:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
         raise LogError(f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, e.g. 640x480") from None
+    if not (16 <= width <= MAX_VIDEO_SIDE and 16 <= height <= MAX_VIDEO_SIDE):
+        raise LogError(
+            f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, each 16..{MAX_VIDEO_SIDE} px"
+        )
+    if not 1.0 <= args.fps <= MAX_VIDEO_FPS:
+        raise LogError(f"invalid --fps {args.fps:g}; valid: 1..{MAX_VIDEO_FPS:g} frames per second")
+    if not 0.01 <= args.speed <= 100.0:
+        raise LogError(f"invalid --speed {args.speed:g}; valid: 0.01..100 simulated s per s")
     output = _output(args.output or args.files[0].with_suffix(".mp4"), [".mp4"], "an MP4 file")
     info = render_video(
         args.files, output, fps=args.fps, width=width, height=height, speed=args.speed

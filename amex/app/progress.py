@@ -69,25 +69,45 @@ def duration(seconds: float) -> str:
     return f"{hours} h {minutes} min"
 
 
-def job_records(sweep_dir: Path, since: float) -> dict[str, dict[str, Any]]:
-    """``summary.json`` of every job directory written at or after ``since`` (epoch seconds)."""
+def summary_stamps(sweep_dir: Path) -> dict[str, tuple[int, int, int]]:
+    """``(inode, size, mtime_ns)`` of every job's ``summary.json`` in ``sweep_dir``, by job name."""
+    stamps = {}
+    for path in sweep_dir.glob("*/summary.json"):
+        with contextlib.suppress(OSError):
+            info = path.stat()
+            stamps[path.parent.name] = (info.st_ino, info.st_size, info.st_mtime_ns)
+    return stamps
+
+
+def job_records(
+    sweep_dir: Path, before: dict[str, tuple[int, int, int]]
+) -> dict[str, dict[str, Any]]:
+    """``summary.json`` of every job written since ``before`` (:func:`summary_stamps`).
+
+    A job counts when its summary is new or was replaced: no wall-clock comparison, so a clock
+    step during the sweep changes nothing.
+    """
     records = {}
-    for path in sorted(sweep_dir.glob("*/summary.json")):
-        with contextlib.suppress(OSError, ValueError):
-            if path.stat().st_mtime >= since - 1.0:
-                records[path.parent.name] = json.loads(path.read_text())
+    for name, stamp in sorted(summary_stamps(sweep_dir).items()):
+        if before.get(name) != stamp:
+            with contextlib.suppress(OSError, ValueError):
+                records[name] = json.loads((sweep_dir / name / "summary.json").read_text())
     return records
 
 
 def sweep_cost(
-    sweep_dir: Path, started: float, wall: float, local_cpu: float, elsewhere: bool = False
+    sweep_dir: Path,
+    before: dict[str, tuple[int, int, int]],
+    wall: float,
+    local_cpu: float,
+    elsewhere: bool = False,
 ) -> SweepCost:
-    """The cost of a sweep that started at ``started`` (epoch) and took ``wall`` seconds.
+    """The cost of a sweep whose directory held the summaries ``before`` when it started.
 
-    ``local_cpu``: the CPU time of this process tree; ``elsewhere``: the jobs ran on other
-    machines (SLURM), so the CPU time is the sum of theirs instead.
+    ``wall``: its wall time; ``local_cpu``: the CPU time of this process tree; ``elsewhere``:
+    the jobs ran on other machines (SLURM), so the CPU time is the sum of theirs instead.
     """
-    records = job_records(sweep_dir, started)
+    records = job_records(sweep_dir, before)
     walls = {name: float(r.get("wall_time", math.nan)) for name, r in records.items()}
     jobs_cpu = sum(float(r.get("cpu_time", 0.0)) for r in records.values())
     known = {n: w for n, w in walls.items() if math.isfinite(w)}
@@ -110,6 +130,74 @@ def describe(sweep_dir: Path, cost: SweepCost) -> str:
     )
 
 
+def run_line(summary: dict[str, Any]) -> str:
+    """A run's result in one line: success rate, final time, failures (its ``summary.json``)."""
+    s = summary["success"]["mean"]
+    t = summary["final_time"]
+    return (
+        f"success {s:.3f}  final time {t['mean']:.2f} +- {t['two_std']:.2f} s  "
+        f"({summary['failures']} failures)"
+    )
+
+
+class LineBar:
+    """A progress bar for logs (not a terminal): a whole line every ``every`` seconds, and last.
+
+    tqdm redraws its line with carriage returns, which a log file (CI, SLURM) keeps as one line
+    with every other line glued onto it. The subset of tqdm's interface that amex uses.
+    """
+
+    def __init__(self, total: int, desc: str, every: float = 10.0) -> None:
+        self.total, self.desc, self.every = total, desc, every
+        self.n = 0
+        self._postfix = ""
+        self._shown = -1
+        self._last = time.monotonic()
+
+    def __enter__(self) -> LineBar:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def _line(self) -> str:
+        share = f" ({100.0 * self.n / self.total:.0f} %)" if self.total else ""
+        tail = f", {self._postfix}" if self._postfix else ""
+        return f"{self.desc}: {self.n}/{self.total} episodes{share}{tail}"
+
+    def _show(self, force: bool = False) -> None:
+        now = time.monotonic()
+        if self.n != self._shown and (force or now - self._last >= self.every):
+            print(self._line(), file=sys.stderr, flush=True)
+            self._shown, self._last = self.n, now
+
+    def update(self, n: int = 1) -> None:
+        """Count ``n`` more episodes."""
+        self.n += n
+        self._show(force=self.n >= self.total)
+
+    def set_postfix(self, refresh: bool = True, **values: Any) -> None:
+        """Text after the count, e.g. ``success=3/4``."""
+        self._postfix = ", ".join(f"{k}={v}" for k, v in values.items())
+
+    def write(self, text: str, file: Any = None) -> None:
+        """A line of its own."""
+        print(text, file=file or sys.stderr, flush=True)
+
+    def close(self) -> None:
+        """The final count."""
+        self._show(force=True)
+
+
+def progress_bar(total: int, desc: str) -> Any:
+    """Tqdm on a terminal, :class:`LineBar` in a log (stderr not a terminal)."""
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc=desc, unit="ep", file=sys.stderr)
+    return LineBar(total, desc)
+
+
 class SweepProgress(Callback):
     """Hydra callback: the sweep's progress bar, and its cost at the end (module notes)."""
 
@@ -128,9 +216,10 @@ class SweepProgress(Callback):
         from amex.app.sweeps import is_ours, job_value, sweep_jobs
         from amex.experiment.shards import shard_envs
 
-        self._started = time.time() - (time.perf_counter() - STARTED), STARTED
+        self._started = STARTED
         self._stop = threading.Event()
         self.sweep_dir = sweep_dir = Path(str(config.hydra.sweep.dir))
+        self._before = summary_stamps(sweep_dir)  # an earlier sweep's jobs do not count
         OUTPUT["dir"] = sweep_dir
         SWEEPS.append(self)
         overrides = [str(o) for o in config.hydra.overrides.task]
@@ -152,15 +241,18 @@ class SweepProgress(Callback):
         self._thread.start()
 
     def _poll(self, sweep_dir: Path, total: int) -> None:
-        from tqdm import tqdm
-
-        with tqdm(total=total, desc=f"sweep {sweep_dir.name}", unit="ep", file=sys.stderr) as bar:
+        seen = dict(self._before)
+        with progress_bar(total, f"sweep {sweep_dir.name}") as bar:
             while True:
                 stopping = self._stop.wait(0.5)
                 done = 0
                 for path in sweep_dir.glob("*/episodes.csv"):
                     with contextlib.suppress(OSError):  # a file being replaced
                         done += max(path.read_bytes().count(b"\n") - 1, 0)
+                for name, record in job_records(sweep_dir, seen).items():  # jobs just finished
+                    if "success" in record:
+                        bar.write(f"{name}: {run_line(record)}")
+                seen = summary_stamps(sweep_dir)
                 bar.update(min(done, total) - bar.n)
                 if stopping:
                     return
@@ -179,9 +271,9 @@ class SweepProgress(Callback):
         self.stop()
         if self.sweep_dir is None:
             return
-        started, tic = self._started  # the command's start: its checks count too
+        tic = self._started  # the command's start: its checks count too
         launcher = str(OmegaConf.select(config, "hydra.launcher._target_", default=""))
         elsewhere = launcher.endswith("SlurmLauncher")  # submitit's: the jobs run on the cluster
         wall = time.perf_counter() - tic
-        cost = sweep_cost(self.sweep_dir, started, wall, tree_cpu_time(), elsewhere)
+        cost = sweep_cost(self.sweep_dir, self._before, wall, tree_cpu_time(), elsewhere)
         print(describe(self.sweep_dir, cost), file=sys.stderr, flush=True)

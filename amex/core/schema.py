@@ -49,11 +49,16 @@ class Limits:
         """In words, e.g. ``a finite number >= 0``."""
         kind = "an integer" if integer else "a finite number"
         parts = [
-            f"{op} {bound:g}"
+            f"{op} {_number(bound)}"
             for op, bound in ((">=", self.ge), (">", self.gt), ("<=", self.le), ("<", self.lt))
             if bound is not None
         ]
         return f"{kind} {' and '.join(parts)}" if parts else kind
+
+
+def _number(x: float) -> str:
+    """A bound in words: whole numbers without an exponent (1000000), others as ``%g``."""
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else f"{x:g}"
 
 
 NON_NEGATIVE = Limits()

@@ -28,6 +28,12 @@ from amex.sim.simulation import MismatchConfig
 
 LOG_LEVELS = ("none", "full")
 MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
+#: Episodes of one run: more is days of CPU and its bookkeeping would not fit in memory; a larger
+#: study splits over seeds or shards.
+MAX_EPISODES = 1_000_000
+#: Inner steps of one episode (max_time x inner_hz): each keeps its joint angles for the paper's
+#: metric (2e6 steps of a 7-joint arm: 112 MB).
+MAX_EPISODE_STEPS = 2_000_000
 SIMULATIONS = ("dynamic", "kinematic")
 
 
@@ -124,18 +130,18 @@ class RunConfig:
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     prediction: PredictionConfig = field(default_factory=PredictionConfig)
     mismatch: MismatchConfig = field(default_factory=MismatchConfig)
-    episodes: int = 150
+    episodes: int = field(default=150, metadata=limits(ge=1, le=MAX_EPISODES))
     seed: int = 0
-    outer_hz: float = 100.0
-    inner_hz: float = 1000.0
-    max_time: float = 10.0
-    success_radius: float = 0.03
-    stop_radius: float = field(default=0.03, metadata=scaled(1))
+    outer_hz: float = field(default=100.0, metadata=limits(gt=0))
+    inner_hz: float = field(default=1000.0, metadata=limits(gt=0))
+    max_time: float = field(default=10.0, metadata=limits(gt=0))
+    success_radius: float = field(default=0.03, metadata=limits(gt=0))
+    stop_radius: float = field(default=0.03, metadata={**scaled(1), **limits(gt=0)})
     sim: str = "dynamic"
     state_lag: bool = False
     implementation: str = "ours"
     log: str = "none"
-    shards: int = 1
+    shards: int = field(default=1, metadata=limits(ge=1))
     shard: int = 0
 
     @property
@@ -200,8 +206,6 @@ def validate(config: RunConfig) -> None:
     if name not in METHODS:
         raise ConfigError.invalid("method", name, sorted(METHODS))
     check_tree(config)
-    if config.episodes < 1:
-        raise ConfigError.invalid("episodes", config.episodes, "an integer >= 1")
     ShardSpec(config.shard, config.shards, config.episodes)  # raises for a bad split
     if config.log not in LOG_LEVELS:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
@@ -224,10 +228,21 @@ def validate(config: RunConfig) -> None:
             "sim=kinematic; valid: none (a kinematic simulation has no torques to compensate)"
         )
     config.loop.validate()
+    steps = config.max_time * config.inner_hz
+    if steps > MAX_EPISODE_STEPS:
+        raise ConfigError(
+            f"invalid max_time={config.max_time:g} with inner_hz={config.inner_hz:g}: "
+            f"{steps:.3g} inner steps per episode; valid: max_time x inner_hz <= "
+            f"{MAX_EPISODE_STEPS:,} ({MAX_EPISODE_STEPS / config.inner_hz:g} s at this rate)"
+        )
     if config.loop.stop_radius > config.success_radius:
-        raise ConfigError.invalid(
-            "stop_radius", config.stop_radius,
-            f"at most success_radius = {config.success_radius} m once x scenario.scale",
+        scale = config.scenario.scale
+        raise ConfigError(
+            f"invalid scenario.scale={scale:g} with stop_radius={config.stop_radius:g}: the "
+            f"episode would stop {config.loop.stop_radius:.3g} m from the goal (stop_radius x "
+            f"scale), beyond success_radius = {config.success_radius:g} m; valid: "
+            f"scenario.scale <= {config.success_radius / config.stop_radius:g} at this "
+            "stop_radius (or a smaller stop_radius)"
         )
     load_robot(config.robot)  # a description the loop cannot use is a configuration error
     plan = config.plan

@@ -23,6 +23,7 @@ from functools import cache
 from pathlib import Path
 
 from amex.core.errors import ConfigError
+from amex.core.files import read_text
 from amex.core.paths import cache_dir
 
 #: A URDF inside the installed example-robot-data package: ``example-robot-data:<path>``.
@@ -205,11 +206,7 @@ def resolve(config: RobotConfig) -> RobotDescription:
         if not value:
             raise ConfigError(f"robot.{key} is required for robot.urdf={urdf!r}")
     path = urdf_file(urdf)
-    try:
-        raw = Path(path).read_text()
-    except (OSError, UnicodeDecodeError) as e:
-        reason = getattr(e, "strerror", None) or str(e)
-        raise ConfigError(f"invalid robot.urdf={urdf!r}: cannot read {path} ({reason})") from e
+    raw = read_text(path, "robot.urdf")
     return RobotDescription(
         name=config.name,
         urdf_path=path,
