@@ -35,7 +35,9 @@ def job_guard(run_dir: Path, multirun: bool) -> Iterator[None]:
     previous_int = None
     if in_worker:
         previous_int = signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher's to handle
-        watch = watch_parent(launcher)
+        watch = watch_parent(launcher, local=os.environ.get("SUBMITIT_EXECUTOR") != "slurm")
+        if watch is not None and watch.orphaned.is_set():
+            os._exit(128 + signal.SIGTERM)  # the launcher died before this job began: nobody waits
     try:
         with signals_raise((signal.SIGTERM,)):
             yield

@@ -91,18 +91,26 @@ class ParentWatch:
         self._stop.set()
 
 
-def watch_parent(parent: int, period: float = 0.5, grace: float = 10.0) -> ParentWatch | None:
-    """Stop this process when ``parent`` exits, if ``parent`` is this process's parent now.
+def watch_parent(
+    parent: int, period: float = 0.5, grace: float = 10.0, local: bool = True
+) -> ParentWatch | None:
+    """Stop this process when ``parent`` exits.
 
     A daemon thread polls ``os.getppid()``; once the process has been re-parented (the parent
     died, however), it sends SIGTERM to its own process (:class:`Interrupted` in the main thread,
     if :func:`signals_raise` is active) and, should the process still live ``grace`` seconds
-    later, ends it with ``os._exit(143)``. Returns None (and watches nothing) when ``parent`` is
-    not the parent, e.g. a SLURM job, whose launcher is on another machine.
+    later, ends it with ``os._exit(143)``. A ``local`` job (a joblib or submitit-local worker)
+    whose parent is not ``parent`` already was orphaned before it started (its launcher was
+    killed while handing out jobs): the watch returned is already ``orphaned``, and the caller
+    must not run the job. Returns None (and watches nothing) for a job that is not ``local``,
+    e.g. a SLURM job, whose launcher is on another machine.
     """
-    if os.getppid() != parent:
-        return None
     watch = ParentWatch()
+    if os.getppid() != parent:
+        if not local:
+            return None
+        watch.orphaned.set()
+        return watch
 
     def poll() -> None:
         while os.getppid() == parent:

@@ -142,6 +142,50 @@ def test_sigkill_to_a_sweep_launcher_leaves_no_worker_running(tmp_path):
     assert proc.returncode == -signal.SIGKILL
 
 
+@pytest.mark.parametrize("after", [0.3, 1.5])
+def test_a_launcher_killed_before_its_jobs_began_leaves_no_job_running(tmp_path, after):
+    """SIGKILL while Hydra hands the jobs out: none starts unwatched, a rerun is not refused."""
+    sweep = tmp_path / "sweep"
+    args = [*SWEEP, f"hydra.sweep.dir={sweep}"]
+    proc = _start(args, tmp_path)
+    time.sleep(after)
+    seen: set[int] = set()
+    deadline = time.time() + after + 2.0
+    while time.time() < deadline:  # the workers it has started so far
+        seen |= _children(proc.pid)
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=30)
+    deadline = time.time() + 15
+    while time.time() < deadline:
+        seen |= {p for p in _all_with_launcher(proc.pid)}
+        if not any(_alive(p) for p in seen):
+            break
+        time.sleep(0.2)
+    survivors = [p for p in seen if _alive(p)]
+    for p in survivors:
+        os.kill(p, signal.SIGKILL)
+    assert not survivors, f"workers alive 15 s after their launcher was killed: {survivors}"
+    rerun = subprocess.run(
+        [AMEX_RUN, *args, "episodes=2"], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert rerun.returncode == 0, rerun.stderr[-2000:]
+
+
+def _all_with_launcher(pid: int) -> set[int]:
+    """Processes whose environment names ``pid`` as their sweep's launcher (orphans included)."""
+    found = set()
+    marker = f"AMEX_LAUNCHER_PID={pid}".encode()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                if marker in (entry / "environ").read_bytes().split(b"\0"):
+                    found.add(int(entry.name))
+            except OSError:
+                continue
+    return found
+
+
 def test_a_second_run_into_a_busy_directory_is_refused_in_one_line(tmp_path):
     out = tmp_path / "run"
     args = ["task=3", "method=amex", "episodes=40", "max_time=6", f"hydra.run.dir={out}"]
