@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from amex.app.argparsing import OneLineParser, fail
-from amex.core.durable import create_new
-from amex.core.errors import AmexError, LogError, LogExistsError, WriteError
+from amex.core.errors import AmexError, LogError
+from amex.log.files import refuse_existing, write_new
 from amex.log.reader import LogData, read_log, recover
 from amex.log.serve import DEFAULT_PORT
 
@@ -102,7 +102,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (AmexError, OSError) as e:
         if os.environ.get("AMEX_DEBUG"):
             raise
-        message = str(e) if isinstance(e, AmexError) else f"{e.strerror or e}: {e.filename}"
+        where = f": {e.filename}" if isinstance(e, OSError) and e.filename else ""
+        message = str(e) if isinstance(e, AmexError) else f"{e.strerror or e}{where}"
         _fail(message)
     return 0
 
@@ -193,6 +194,7 @@ def plot(args: argparse.Namespace) -> None:
 
     formats = [f".{ext}" for ext in FigureCanvasBase.get_supported_filetypes()]
     output = _output(output, [".png", *sorted(set(formats) - {".png"})], "an image format")
+    refuse_existing(output)
     data = read_log(args.file)
     if "/tcp" not in data.channels or not data.messages["/tcp"]:
         raise LogError(f"{args.file} has no /tcp messages to plot (not an amex episode log?)")
@@ -250,13 +252,7 @@ def layout(args: argparse.Namespace) -> None:
                          "joint_names": list(robot.joint_names)},
         )  # fmt: skip
     output = _output(args.output, [".json"], "a JSON file")
-    output.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        create_new(output, (json.dumps(layout, indent=2) + "\n").encode())
-    except FileExistsError:
-        raise LogExistsError(f"output file {output} already exists; not overwriting it") from None
-    except WriteError as e:
-        raise LogError(str(e)) from e
+    write_new(output, (json.dumps(layout, indent=2) + "\n").encode())
     sys.stdout.write(f"wrote {output}; in Foxglove desktop: Layouts > Import from file\n")
 
 
@@ -300,9 +296,9 @@ def video(args: argparse.Namespace) -> None:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
         raise LogError(f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, e.g. 640x480") from None
-    if not (16 <= width <= MAX_VIDEO_SIDE and 16 <= height <= MAX_VIDEO_SIDE):
+    if not (64 <= width <= MAX_VIDEO_SIDE and 64 <= height <= MAX_VIDEO_SIDE):
         raise LogError(
-            f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, each 16..{MAX_VIDEO_SIDE} px"
+            f"invalid --size {args.size!r}; valid: WIDTHxHEIGHT, each 64..{MAX_VIDEO_SIDE} px"
         )
     if not 1.0 <= args.fps <= MAX_VIDEO_FPS:
         raise LogError(f"invalid --fps {args.fps:g}; valid: 1..{MAX_VIDEO_FPS:g} frames per second")

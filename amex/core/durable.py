@@ -214,3 +214,25 @@ class RunLock:
         finally:
             os.close(fd)
         return None
+
+
+def publish_new(tmp: Path, path: Path) -> None:
+    """Give the finished file ``tmp`` its final name ``path``, never replacing a file there.
+
+    For outputs written by other libraries (a film, an image): they write ``tmp`` in the same
+    directory; this links it to ``path`` atomically and removes ``tmp`` either way.
+
+    Raises:
+        FileExistsError: ``path`` exists (checked atomically, at the link).
+        WriteError: the link could not be made.
+    """
+    try:
+        os.link(tmp, path)  # fails if path exists
+    except FileExistsError:
+        raise FileExistsError(errno.EEXIST, "file exists, not overwriting it", str(path)) from None
+    except OSError as e:
+        raise WriteError(path, _reason(e)) from e
+    finally:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+    _sync_directory(path.parent)

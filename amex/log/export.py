@@ -2,43 +2,43 @@
 
 from __future__ import annotations
 
+import io
 import json
 from pathlib import Path
 from typing import Any
 
+from amex.log.files import refuse_existing, write_new
 from amex.log.reader import LogData, topics_with_numbers
 
 
 def export_tables(data: LogData, out_dir: Path, fmt: str = "csv") -> list[Path]:
     """Write each JSON topic, and the joint states, as a table (lists flattened: ``q_0``...).
 
-    Returns the files written (the tables, then ``metadata.json``).
+    Every file is new and written whole (:func:`amex.log.files.write_new`); if any of them
+    exists, nothing is written. Returns the files written (the tables, then ``metadata.json``).
     """
     import pandas as pd
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written = []
     tables: dict[str, Any] = {t: _table(data, t) for t in topics_with_numbers(data)}
     if data.channels.get("/joint_states"):
         tables["/joints"] = _joint_table(data)
+    paths = {
+        topic: out_dir / f"{topic.strip('/').replace('/', '_') or 'root'}.{fmt}" for topic in tables
+    }
+    meta = out_dir / "metadata.json"
+    refuse_existing(*paths.values(), meta)
+    written = []
     for topic, rows in tables.items():
         frame = pd.DataFrame(rows)
-        name = topic.strip("/").replace("/", "_") or "root"
-        path = out_dir / f"{name}.{fmt}"
+        buffer = io.BytesIO()
         if fmt == "csv":
-            frame.to_csv(path, index=False)
+            frame.to_csv(buffer, index=False)
         else:
-            frame.to_parquet(path, index=False)
-        written.append(path)
-    meta = out_dir / "metadata.json"
-    meta.write_text(
-        json.dumps(
-            {"truncated": data.truncated, "corrupt": data.corrupt, "note": data.note}
-            | data.metadata,
-            indent=2,
-        )
-        + "\n"
-    )
+            frame.to_parquet(buffer, index=False)
+        write_new(paths[topic], buffer.getvalue())
+        written.append(paths[topic])
+    info = {"truncated": data.truncated, "corrupt": data.corrupt, "note": data.note}
+    write_new(meta, (json.dumps(info | data.metadata, indent=2) + "\n").encode())
     written.append(meta)
     return written
 

@@ -5,16 +5,25 @@ Paths in task space, the distance to the goal, the method's internals, the joint
 
 from __future__ import annotations
 
+import io
 import math
 from pathlib import Path
 from typing import Any
 
+from amex.log.files import write_new
 from amex.log.plot3d import set_equal_axes_3d
 from amex.log.reader import LogData
 
 
 def plot_episode(data: LogData, output: Path) -> None:
-    """Save the episode's figure (2 x 2 panels) to ``output``, in the format of its suffix."""
+    """Save the episode's figure (2 x 2 panels) as the new file ``output`` (format: its suffix).
+
+    Rendered in memory and written whole (:func:`amex.core.durable.create_new`): an existing
+    file is never replaced, and a full disk leaves no partial image under the name.
+
+    Raises:
+        LogExistsError: ``output`` exists; WriteError: it could not be written.
+    """
     import matplotlib
     import numpy as np
 
@@ -55,9 +64,10 @@ def plot_episode(data: LogData, output: Path) -> None:
         ax.legend(loc="upper right", ncol=2, fontsize="small")
     ax.set(xlabel="t [s]", ylabel="q_ddot [rad/s^2]", title="Joint accelerations (100 Hz)")
     fig.suptitle(_title(data))
-    output.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(output, dpi=110)
+    image = io.BytesIO()
+    fig.savefig(image, dpi=110, format=output.suffix.lstrip(".").lower())
     plt.close(fig)
+    write_new(output, image.getvalue())
 
 
 def _title(data: LogData) -> str:

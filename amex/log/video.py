@@ -14,14 +14,15 @@ episode at 30 frames/s takes ~4 s; ~80-150 kB per second of film.
 
 from __future__ import annotations
 
-import os
+import contextlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from amex.core.errors import LogError
+from amex.core.durable import publish_new
+from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.palette import GOAL_COLOR, OBSTACLE_COLOR, REFERENCE_COLOR, method_color, rgba
 from amex.core.palette import method_label as label_of
 from amex.log.reader import LogData, read_log
@@ -236,17 +237,21 @@ def render_video(
 
     Args:
         logs: episode logs; several are shown side by side on one clock.
-        output: the MP4 file (replaced if it exists).
+        output: the MP4 file to create (an existing file is never replaced).
         fps: frames per second of film.
         width: width of one panel [px] (a multiple of 16 keeps the encoder from resizing).
         height: height [px].
         speed: simulated seconds per second of film.
 
     Raises:
-        LogError: a log cannot be read or filmed; RenderError: no headless OpenGL.
+        LogError: a log cannot be read or filmed; RenderError: no headless OpenGL;
+        LogExistsError: ``output`` exists; WriteError: the film could not be written.
     """
     import imageio_ffmpeg
     import mujoco
+
+    if output.exists() or output.is_symlink():
+        raise LogExistsError(f"output file {output} already exists; not overwriting it")
 
     if not 1 <= len(logs) <= MAX_PANELS:
         raise LogError(f"give 1 to {MAX_PANELS} logs to film side by side, not {len(logs)}")
@@ -281,6 +286,7 @@ def render_video(
         )
         writer.send(None)
         rgb = np.empty((height, width, 3), dtype=np.uint8)
+        written = False
         try:
             for k in range(frames + hold):
                 t = min(k / fps * speed, end) if k < frames else end + 1.0
@@ -291,9 +297,21 @@ def render_video(
                     mujoco.mjr_readPixels(rgb, None, viewport, context)
                     row.append(np.flipud(rgb).copy())
                 writer.send(np.ascontiguousarray(np.hstack(row)))
-        finally:
             writer.close()
-        os.replace(tmp, output)
+            written = True
+        except OSError as e:  # ffmpeg's pipe or file: a full disk, a removed directory
+            raise WriteError(output, e.strerror or str(e)) from e
+        finally:
+            if not written:
+                with contextlib.suppress(Exception):
+                    writer.close()
+                with contextlib.suppress(OSError):
+                    tmp.unlink()
+        try:
+            publish_new(tmp, output)
+        except FileExistsError:
+            message = f"output file {output} appeared while filming; not replaced"
+            raise LogExistsError(message) from None
     finally:
         for context in contexts:
             context.free()

@@ -67,7 +67,7 @@ from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
 
 import amex
-from amex.core.errors import LogError, LogExistsError
+from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.log import messages as M
 from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
 
@@ -102,6 +102,45 @@ def set_aside(path: Path) -> Path:
             log.warning("log %s already existed; kept it as %s", path, target.name)
             return target
     raise LogExistsError(f"log file {path} exists and no free name is left to keep it")
+
+
+class _WriteFailures(logging.Filter):
+    """Watches foxglove-sdk's log records for a failed write (e.g. a full disk).
+
+    The SDK's writer does not raise when a write fails: it logs a warning per message from then
+    on. Attached to its loggers while a log is open, this keeps the first failure's cause and
+    swallows the rest, so that :class:`EpisodeLogger` can stop with one error instead.
+    """
+
+    LOGGERS = ("foxglove.log_sink_set", "foxglove_py.mcap")
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cause = ""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        text = record.getMessage()
+        if "McapError" not in text and "MCAP" not in text:
+            return True
+        if not self.cause:
+            self.cause = _cause(text)
+        return False
+
+    def attach(self) -> None:
+        for name in self.LOGGERS:
+            logging.getLogger(name).addFilter(self)
+
+    def detach(self) -> None:
+        for name in self.LOGGERS:
+            logging.getLogger(name).removeFilter(self)
+
+
+def _cause(text: str) -> str:
+    """The OS's words in a foxglove-sdk error (``No space left on device``), else the text."""
+    for marker in ('message: "', "message: '"):
+        if marker in text:
+            return text.split(marker, 1)[1].split(marker[-1], 1)[0]
+    return " ".join(text.split())[:200]
 
 
 class EpisodeLogger:
@@ -163,6 +202,8 @@ class EpisodeLogger:
         )
         self._goal_json = M.json_template([("t", 0), ("position", 3), ("distance", 0)])
 
+        self._failures = _WriteFailures()
+        self._failures.attach()
         self._context = foxglove.Context()
         options = MCAPWriteOptions(
             compression=COMPRESSION,
@@ -176,6 +217,7 @@ class EpisodeLogger:
                 self.part_path, context=self._context, writer_options=options
             )
         except Exception as e:  # foxglove raises its own error types for I/O failures
+            self._failures.detach()
             raise LogError(f"cannot create the log file {self.part_path}: {e}") from e
         self._closed = False
         ctx = self._context
@@ -207,8 +249,13 @@ class EpisodeLogger:
     def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         if exc_type is None:
             self.close()
-        else:
+            return
+        try:
             self.close({"status": "interrupted", "error": f"{exc_type.__name__}: {exc}"})
+        except WriteError:
+            if not isinstance(exc, WriteError):
+                raise  # the log failed too: that is the cause to report
+            # else: the episode already stopped for this failure
 
     @property
     def closed(self) -> bool:
@@ -227,19 +274,25 @@ class EpisodeLogger:
         self._closed = True
         self._restore_sigterm()
         try:
-            if not self._outcome_written:
+            if not self._outcome_written and not self._failures.cause:
                 info = {"status": "incomplete", "steps": self._steps, "t": self._t}
                 info.update(outcome or {})
                 self._write_metadata("outcome", info)
             for channel in self._all_channels():
                 channel.close()
-            self._writer.close()
+            try:
+                self._writer.close()
+            except Exception as e:  # the SDK's error for a write that failed at the end
+                self._failures.cause = self._failures.cause or _cause(str(e))
         finally:
-            if self.path.exists():  # appeared meanwhile: keep both, say where the log is
-                raise LogExistsError(
-                    f"log file {self.path} appeared while logging; the log is in {self.part_path}"
-                )
-            os.replace(self.part_path, self.path)
+            self._failures.detach()
+        if self._failures.cause:  # a cut log keeps its .part name: it is no finished episode
+            raise WriteError(self.part_path, self._failures.cause)
+        if self.path.exists():  # appeared meanwhile: keep both, say where the log is
+            raise LogExistsError(
+                f"log file {self.path} appeared while logging; the log is in {self.part_path}"
+            )
+        os.replace(self.part_path, self.path)
 
     def _all_channels(self) -> list[Any]:
         return [
@@ -415,6 +468,8 @@ class EpisodeLogger:
             self._publish_reference(t)
         self._steps += 1
         self._t = t
+        if self._failures.cause:  # stop the episode: the rest of the log could not be written
+            raise WriteError(self.part_path, self._failures.cause)
 
     def _log_method(self, t: float, internals: dict[str, Any], ns: int) -> None:
         """``/method``: the numbers, flags, texts and small number arrays of ``internals()``.

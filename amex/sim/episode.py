@@ -48,7 +48,7 @@ from amex.control.collision import CollisionModel
 from amex.control.disturbance import DisturbanceConfig, make_inner_controller
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
 from amex.control.state import RobotState
-from amex.core.errors import AmexError, ConfigError, SimulationError
+from amex.core.errors import AmexError, ConfigError, SimulationError, WriteError
 from amex.core.schema import check_tree
 from amex.core.types import command_problem
 from amex.methods.base import Method, Observation
@@ -339,6 +339,8 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
                     recorder.record(StepRecord(t, state, obs, command, internals, tau, qacc))
     except SimulationError as error:
         failure = error.reason
+    except WriteError:
+        raise  # a record could not be written (a full disk): the run stops, the episode is redone
     except AmexError as error:
         failure = f"solver: {error}"
     return e.result(k, t, distance, sum_sq_acc, collided, failure)

@@ -92,7 +92,7 @@ def test_a_glob_sweep_over_a_config_group_expands():
 
 @pytest.mark.parametrize(
     ("option", "value", "valid"),
-    [("--fps", "1e7", "1..240"), ("--size", "20000x20000", "16..4096"), ("--speed", "0", "0.01")],
+    [("--fps", "1e7", "1..240"), ("--size", "20000x20000", "64..4096"), ("--speed", "0", "0.01")],
 )
 def test_video_options_beyond_any_screen_are_refused(tmp_path, capsys, option, value, valid):
     log = tmp_path / "episode.mcap"
