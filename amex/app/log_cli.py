@@ -216,10 +216,15 @@ def export(args: argparse.Namespace) -> None:
                 "--format parquet needs pyarrow, which is not installed: pip install pyarrow "
                 "(or use --format csv)"
             ) from None
-    from amex.log.export import export_tables
+    from amex.log.export import export_tables, undecodable
 
     out_dir = args.output or args.file.with_name(args.file.stem + "_export")
     written = export_tables(data, out_dir, args.format)
+    for topic, (bad, total) in undecodable(data).items():
+        sys.stderr.write(
+            f"{PROG}: note: {bad} of {total} {topic} messages are no JSON object (damaged); "
+            "left out of its table\n"
+        )
     if data.damage:
         sys.stderr.write(f"{PROG}: note: {_truncation_line(data)}\n")
     for path in written:

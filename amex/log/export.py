@@ -15,7 +15,8 @@ def export_tables(data: LogData, out_dir: Path, fmt: str = "csv") -> list[Path]:
     """Write each JSON topic, and the joint states, as a table (lists flattened: ``q_0``...).
 
     Every file is new and written whole (:func:`amex.log.files.write_new`); if any of them
-    exists, nothing is written. Returns the files written (the tables, then ``metadata.json``).
+    exists, nothing is written. Messages that are no JSON object are left out of their table:
+    :func:`undecodable` counts them. Returns the files written (tables, then ``metadata.json``).
     """
     import pandas as pd
 
@@ -41,6 +42,17 @@ def export_tables(data: LogData, out_dir: Path, fmt: str = "csv") -> list[Path]:
     write_new(meta, (json.dumps(info | data.metadata, indent=2) + "\n").encode())
     written.append(meta)
     return written
+
+
+def undecodable(data: LogData) -> dict[str, tuple[int, int]]:
+    """Per exported topic, ``(left out, messages)`` where messages are no JSON object."""
+    counts = {}
+    for topic in topics_with_numbers(data):
+        messages = data.messages[topic]
+        bad = sum(1 for m in messages if not isinstance(m.data, dict))
+        if bad:
+            counts[topic] = (bad, len(messages))
+    return counts
 
 
 def _table(data: LogData, topic: str) -> list[dict[str, Any]]:

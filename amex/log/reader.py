@@ -160,12 +160,10 @@ class LogData:
             if schema is not None and schema.encoding == "protobuf":
                 try:
                     decoder = ProtobufSchema(schema.data)
-                    decoded = [
-                        LogMessage(m.log_time, decoder.decode(schema.name, m.data))
-                        for m in messages
-                    ]
                 except (ValueError, IndexError, struct.error, UnicodeDecodeError):
-                    decoded = list(messages)  # a damaged schema or message: bytes it is
+                    decoder = None  # a damaged schema: every message stays bytes
+                if decoder is not None:
+                    decoded = [_decoded(decoder, schema.name, m) for m in messages]
             self._decoded[topic] = decoded
         return self._decoded[topic]
 
@@ -221,6 +219,14 @@ class LogData:
             else:
                 out[i] = np.nan if value is None else value
         return out
+
+
+def _decoded(decoder: ProtobufSchema, name: str, message: LogMessage) -> LogMessage:
+    """One protobuf message decoded, or left as bytes if it cannot be (the others still are)."""
+    try:
+        return LogMessage(message.log_time, decoder.decode(name, message.data))
+    except (ValueError, IndexError, struct.error, UnicodeDecodeError, TypeError):
+        return message
 
 
 def _check_file(path: Path) -> int:

@@ -168,3 +168,50 @@ def test_layout_never_overwrites(log_file, tmp_path, capsys):
     assert code == 2 and "already exists" in err and target.read_text() == "precious"
     code, out, _ = _run(["layout", "-o", tmp_path / "panda_layout.json"], capsys)
     assert code == 0 and json.loads((tmp_path / "panda_layout.json").read_text())
+
+
+def _rewritten(log_file, path, damage):
+    """``log_file`` rewritten with ``damage(topic, index, data) -> data`` applied per message."""
+    from mcap.writer import CompressionType
+
+    raw = read_log(log_file)._raw
+    with open(path, "wb") as f:
+        writer = Writer(f, compression=CompressionType.ZSTD)
+        writer.start(profile="", library="test")
+        schemas = {
+            sid: writer.register_schema(s.name, s.encoding, s.data)
+            for sid, s in sorted(raw.schemas.items())
+        }
+        channels = {
+            cid: writer.register_channel(c.topic, c.message_encoding, schemas.get(c.schema_id, 0))
+            for cid, c in sorted(raw.channels.items())
+        }
+        for record in raw.metadata:
+            writer.add_metadata(record.name, dict(record.metadata))
+        seen: dict[str, int] = {}
+        for m in raw.messages:
+            topic = raw.channels[m.channel_id].topic
+            i = seen[topic] = seen.get(topic, -1) + 1
+            data = damage(topic, i, m.data)
+            writer.add_message(channels[m.channel_id], m.log_time, data, m.publish_time)
+        writer.finish()
+    return path
+
+
+def test_one_undecodable_message_leaves_the_rest_of_its_topic_decoded(log_file, tmp_path):
+    def damage(topic, i, data):
+        return b"\xff\xff\xff" if topic == "/joint_states" and i == 3 else data
+
+    data = read_log(_rewritten(log_file, tmp_path / "one_bad.mcap", damage))
+    decoded = data.decoded("/joint_states")
+    assert isinstance(decoded[3].data, bytes)
+    assert all(isinstance(m.data, dict) for i, m in enumerate(decoded) if i != 3)
+
+
+def test_export_says_which_messages_it_left_out(log_file, tmp_path, capsys):
+    def damage(topic, i, data):
+        return b"{not json" if topic == "/tcp" and i in (2, 5) else data
+
+    path = _rewritten(log_file, tmp_path / "bad_json.mcap", damage)
+    code, out, err = _run(["export", path, "-o", tmp_path / "tables"], capsys)
+    assert code == 0 and "2 of" in err and "/tcp messages are no JSON object" in err
