@@ -97,6 +97,7 @@ def validate_command_line(argv: list[str]) -> None:
                 "(with ${amex.shard:${shard},${shards}} for shards)"
             )
         owners[job_dir] = job
+        check_own_files(job_dir)
         _check_resumable(job_dir, config)
 
 
@@ -177,6 +178,37 @@ def check_output_dir(key: str, path: Path) -> None:
             raise LaunchError(
                 f"another amex-run is writing into {directory} ({holder}); wait for it to finish "
                 f"or choose another {key}"
+            )
+
+
+#: What Hydra and amex write in a run directory: none of it may be a link to elsewhere.
+OWN_FILES = (
+    ".hydra",
+    ".hydra/config.yaml",
+    ".hydra/hydra.yaml",
+    ".hydra/overrides.yaml",
+    "run.log",
+    ".amex-run.lock",
+    "episodes.csv",
+    "summary.json",
+    "shard.json",
+    "logs",
+)
+
+
+def check_own_files(run_dir: Path) -> None:
+    """Refuse a run directory where a file Hydra or amex write is a symbolic link.
+
+    Writing through it would overwrite or append to the link's target, which may be any file of
+    the user's (a run directory copied or unpacked from elsewhere).
+    """
+    for name in OWN_FILES:
+        path = run_dir / name
+        if path.is_symlink():
+            raise LaunchError(
+                f"invalid run directory {run_dir}: {name} is a symbolic link (to "
+                f"{os.readlink(path)}); valid: a run directory whose files are its own (remove "
+                "the link, or choose another directory)"
             )
 
 

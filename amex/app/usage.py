@@ -74,7 +74,7 @@ def _table(rows: list[tuple[str, str]], indent: int = 2) -> list[str]:
 
 def _pattern(text: str) -> str:
     """A Hydra directory pattern with its interpolations as ``<names>``."""
-    for hydra_name, name in (("${now:%Y-%m-%d}", "date"), ("${now:%H-%M-%S}", "time"),
+    for hydra_name, name in (("${now:%Y-%m-%d}", "date"), ("${now:%H-%M-%S.%f}", "time"),
                              ("${method.name}", "method")):  # fmt: skip
         text = text.replace(hydra_name, f"<{name}>")
     text = text.replace("${amex.shard:${shard},${shards}}", "[_shard<I>of<K>]")
