@@ -152,13 +152,36 @@ def register_schemas() -> None:
     # config, Hydra's public register() the class (installed wheels are found either way)
     plugin = importlib.import_module("hydra_plugins.amex_sweeper.amex_sweeper")
     Plugins.instance().register(plugin.AmexSweeper)
-
     cs = ConfigStore.instance()
+    _store_joblib_launcher(cs)
     cs.store(name="run_schema", node=RunConfig)
     for name, cls in METHODS.items():
         cs.store(group="method", name=f"schema_{name}", node=cls.config_class)
         if name not in BUILTIN_METHODS:  # a plugin: ``method=<name>`` is its dataclass's defaults
             cs.store(group="method", name=name, node=cls.config_class)
+
+
+#: Seconds an idle joblib worker waits for a job before it exits (loky's default: 300). Within a
+#: sweep the workers are never idle that long; after it, or once its launcher was killed, they go.
+IDLE_WORKER_TIMEOUT = 10
+
+
+def _store_joblib_launcher(cs: Any) -> None:
+    """``hydra/launcher=joblib`` with ``idle_worker_timeout`` (:data:`IDLE_WORKER_TIMEOUT`).
+
+    Replaces the joblib launcher plugin's own config node (imported first, so it cannot store
+    its node over ours later); the launcher passes every field on to ``joblib.Parallel``.
+    """
+    from dataclasses import make_dataclass
+
+    from hydra_plugins.hydra_joblib_launcher.config import JobLibLauncherConf
+
+    node = make_dataclass(
+        "AmexJobLibLauncherConf",
+        [("idle_worker_timeout", int, IDLE_WORKER_TIMEOUT)],
+        bases=(JobLibLauncherConf,),
+    )
+    cs.store(group="hydra/launcher", name="joblib", node=node, provider="joblib_launcher")
 
 
 @contextlib.contextmanager

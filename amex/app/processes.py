@@ -91,29 +91,47 @@ class ParentWatch:
         self._stop.set()
 
 
+def _ancestors() -> list[int]:
+    """The ancestors of this process, nearest first (from ``/proc``; without it: the parent)."""
+    chain, pid = [], os.getpid()
+    for _ in range(64):
+        fields = _proc_stat(pid)
+        if fields is None:
+            break
+        pid = int(fields[1])
+        if pid <= 1:
+            break
+        chain.append(pid)
+    return chain or [os.getppid()]
+
+
 def watch_parent(
     parent: int, period: float = 0.5, grace: float = 10.0, local: bool = True
 ) -> ParentWatch | None:
-    """Stop this process when ``parent`` exits.
+    """Stop this process when ``parent``, the process that launched its sweep, exits.
 
-    A daemon thread polls ``os.getppid()``; once the process has been re-parented (the parent
-    died, however), it sends SIGTERM to its own process (:class:`Interrupted` in the main thread,
-    if :func:`signals_raise` is active) and, should the process still live ``grace`` seconds
-    later, ends it with ``os._exit(143)``. A ``local`` job (a joblib or submitit-local worker)
-    whose parent is not ``parent`` already was orphaned before it started (its launcher was
-    killed while handing out jobs): the watch returned is already ``orphaned``, and the caller
-    must not run the job. Returns None (and watches nothing) for a job that is not ``local``,
-    e.g. a SLURM job, whose launcher is on another machine.
+    A daemon thread polls whether ``parent`` is still an ancestor of this process (a joblib
+    worker is its child; a submitit-local job its grandchild); once it is not (it died, however),
+    the thread sends SIGTERM to its own process (:class:`Interrupted` in the main thread, if
+    :func:`signals_raise` is active) and, should the process still live ``grace`` seconds later,
+    ends it with ``os._exit(143)``. A ``local`` job whose launcher is already gone when it starts
+    (killed while handing out jobs) gets a watch that is already ``orphaned``: the caller must
+    not run the job. Returns None (and watches nothing) for a job that is not ``local``, e.g. a
+    SLURM job, whose launcher is on another machine.
     """
+    if not local:
+        return None
     watch = ParentWatch()
-    if os.getppid() != parent:
-        if not local:
-            return None
+    if parent not in _ancestors():
         watch.orphaned.set()
         return watch
+    direct = os.getppid() == parent
+
+    def alive() -> bool:
+        return os.getppid() == parent if direct else parent in _ancestors()
 
     def poll() -> None:
-        while os.getppid() == parent:
+        while alive():
             if watch._stop.wait(period):
                 return
         watch.orphaned.set()
