@@ -1,46 +1,12 @@
 """Compensation of the torque the controller's model does not explain (``controller.disturbance``).
 
-The inner controller computes ``tau = M q_ddot* + h`` with Pinocchio's model (:mod:`.osc`). On a
-robot that differs from it (``mismatch.*``: heavier links, joint friction and damping) the
-dynamics are ``M q_ddot + h = tau + tau_d`` with an unknown disturbance ``tau_d``, and the task
-PD of Eq. 6 alone has to carry it. Two ways of taking it off that PD, shared by every method
-(they wrap :meth:`OperationalSpaceController.torque`, which the episode loop calls):
-
-``observer``: the generalized-momentum observer of De Luca et al. With ``p = M(q) q_dot``,
-    ``p_dot = tau + tau_d + C^T q_dot - g`` (from ``M_dot = C + C^T``), and the residual
-
-        r(t) = K_O (p(t) - p(0) - int_0^t (tau + C^T q_dot - g + r) ds)
-
-    obeys ``r_dot = K_O (tau_d - r)``: a first-order low-pass of ``tau_d`` with bandwidth ``K_O``
-    [1/s], per joint, decoupled, without measured accelerations. The controller applies
-    ``tau = clip(M q_ddot* + h - r)``, so once ``r`` has converged the arm moves as the model
-    predicts. Per inner step of length ``dt`` (``tau`` and the state at the start of the step,
-    as MuJoCo's Euler step applies them; the integral by the rectangle rule, the filter exactly):
-
-        d_k = (p_k - p_{k-1}) / dt - (tau_{k-1} + C_{k-1}^T q_dot_{k-1} - g_{k-1}),
-        r_k = a r_{k-1} + (1 - a) d_k,   a = exp(-K_O dt),
-
-    ``d_k`` being the momentum change the model cannot account for in the step (with
-    ``a ~ 1 - K_O dt`` this is the integral form above). ``tau`` is the torque actually applied
-    (after the clip), never the command, and every term comes from Pinocchio's model, never from
-    the simulator. Saturation cannot wind the observer up (it sees the applied torque); its
-    estimate is clamped to ``limit`` times the joint torque limits (default 1: never more than
-    the motors can give), so it stays bounded whatever the arm meets, a load it cannot carry or
-    a contact (which it also takes for a disturbance). On the exact model ``r`` stays below
-    ~3e-3 N m (discretisation: the Euler step versus ``M_dot = C + C^T``).
-
-``integral``: integral action on the task errors of Eq. 6. Each active task (TCP position and
-    axis for task-space commands, joints for joint commands) gets ``y_ddot* += K_I z`` with
-    ``z = int (Kp (y* - y) + Kd (y_dot* - y_dot)) dt`` [m/s], implemented by shifting the
-    commanded velocity, ``y_dot* += K_I z / Kd`` (identical in Eq. 6). Anti-windup: ``z`` is not
-    integrated while any joint torque is at its limit, and ``K_I z`` is clamped to
-    ``integral_limit`` [m/s^2 or rad/s^2] (the clamped value is stored back). Unlike the observer
-    it also acts on the nominal robot (it integrates every tracking lag) and it fights the
-    collision task whenever that holds the TCP off its target.
-
-``none`` (the default) is the OSC itself: episodes are bit-for-bit those without this module. A
-kinematic simulation (no dynamics) has nothing to compensate: the episode loop must not build a
-compensator there (:func:`make_inner_controller` with ``kind="none"``).
+On a robot that differs from the model (``mismatch.*``) the dynamics are
+``M q_ddot + h = tau + tau_d``. Two compensations wrap
+:meth:`~amex.control.osc.OperationalSpaceController.torque` for every method: ``observer``, the
+generalized-momentum observer of De Luca et al. (``r_dot = K_O (tau_d - r)``, applied as
+``tau = clip(M q_ddot* + h - r)``), and ``integral``, integral action on the task errors of the
+paper's Eq. 6 (``y_ddot* += K_I z``, with anti-windup). ``none`` (the default) is the paper's
+controller, bit for bit. Derivation, discretisation and measurements: ``docs/disturbance.md``.
 """
 
 from __future__ import annotations

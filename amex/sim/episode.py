@@ -1,36 +1,13 @@
 """One episode: the two-rate loop of the paper's Fig. 3 in MuJoCo.
 
-Outer loop (``outer_hz``, 100 Hz): the method reads an :class:`~amex.methods.base.Observation` and
-returns a :class:`~amex.control.osc.Command`. Inner loop (``inner_hz``, 1 kHz): the
-operational-space controller turns the held command into torques with Pinocchio's model, and MuJoCo
-integrates one step. The simulator never knows which method runs; the method never touches MuJoCo.
-
-Simulation. ``dynamic`` (default): the torque ``tau = M q_ddot* + h`` (clipped to the limits) is
-applied in MuJoCo, which integrates one step (semi-implicit Euler). ``kinematic``: the controller's
-``q_ddot*`` is integrated directly, ``q += dt q_dot; q_dot += dt q_ddot*`` (explicit Euler, as the
-authors' harness did: its physics call was commented out), so masses, torque limits and model
-mismatch play no role and an episode costs no inverse dynamics and no MuJoCo step. MuJoCo still
-places the arm's geoms at every step of a scene with obstacles and detects contacts
-(``mj_kinematics`` + ``mj_collision``), so ``collided`` means the same in both; the arm passes
-through what it touches. ``sum_sq_acc`` sums MuJoCo's ``qacc`` (dynamic) or ``q_ddot*``
-(kinematic); the joint angles of every inner step are kept for ``sum_sq_acc_paper``
-(:func:`amex.sim.metrics.paper_sum_sq_acc`).
-
-State lag (``LoopConfig.state_lag``): in the authors' loop the task state a method read, and the
-TCP the stop rule measured, were computed before the last inner integration step, so they were one
-inner step (1 ms) old; the controller's own state was current.
-
-Termination: the episode stops when the TCP is within ``stop_radius`` of the current goal (checked
-at every inner step, before the command is applied), else at ``max_time``. Success is judged on the
-final distance (``success_radius``, the paper's 0.03 m). Non-finite or diverging states, and
-solver failures, end the episode with a recorded ``failure`` reason instead of raising.
-
-Why two radii: the paper stopped at 0.03 m on a robot whose motions were ~1.2 m long; on the
-Panda the scene is scaled by 0.2, so stopping at an absolute 0.03 m would cut the last 12 % of every
-motion (final times near 3.1 s instead of the paper's ~3.6 s). ``stop_radius`` defaults to
-0.03 m x scale (the same relative precision as the paper); success keeps the paper's absolute
-threshold. Non-finite or diverging states, and
-solver failures, end the episode with a recorded ``failure`` reason instead of raising.
+Outer loop (``outer_hz``, 100 Hz): the method turns an :class:`~amex.core.types.Observation` into a
+:class:`~amex.core.types.Command`; inner loop (``inner_hz``, 1 kHz): the operational-space
+controller (Eq. 4-6) turns the held command into torques ``tau = M q_ddot* + h`` and MuJoCo
+integrates one step (``sim=dynamic``), or ``q_ddot*`` is integrated by explicit Euler
+(``sim=kinematic``, as the authors' harness). The episode stops within ``stop_radius`` of the
+current goal or at ``max_time``; success is judged at ``success_radius``. Numerical trouble, a
+failed solve or a malformed answer of the method end the episode with a recorded ``failure``.
+The loop, the two radii, the state lag and the kinematic simulation: ``docs/simulation.md``.
 """
 
 from __future__ import annotations
