@@ -25,8 +25,8 @@ test: $(STAMP)
 
 ## The tests of logs, the episode store and the plan cache again under other BLAS kernels than
 ## this machine's: no test may depend on bits that follow the kernel (Intel and AMD differ).
-KERNEL_TESTS := tests/test_log.py tests/test_faults_logs.py tests/test_store.py \
-  tests/test_faults_store.py tests/test_faults_cache.py
+KERNEL_TESTS := tests/log/test_log.py tests/log/test_faults_logs.py tests/experiment/test_store.py \
+  tests/experiment/test_faults_store.py tests/plan/test_faults_cache.py
 test-kernels: $(STAMP)
 	for kernel in Haswell Prescott; do \
 	  OPENBLAS_CORETYPE=$$kernel $(BIN)/python -m pytest -q $(KERNEL_TESTS) || exit $$?; \

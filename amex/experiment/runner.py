@@ -171,13 +171,14 @@ def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> Ep
         setup.scene, setup.task, setup.seed, env, context.plan.y[0, :3], context.plan.duration
     )
     args = (context.robot, method, scenario, setup.gains, setup.loop)
+    world = {**setup.world, "reference_path": context.plan.y[:, :3]}
     if log_path is None:
-        return run_episode(*args, **setup.world)
+        return run_episode(*args, **world)
     from amex.log import EpisodeLogger
 
     metadata = {"task": setup.task, "method": method.name, "env": env, "seed": setup.seed}
     with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
-        return run_episode(*args, logger, **setup.world)
+        return run_episode(*args, logger, **world)
 
 
 def run_one(

@@ -30,7 +30,13 @@ from amex.core.schema import check_tree
 from amex.core.types import command_problem
 from amex.methods.base import Method, Observation
 from amex.robot import RobotModel
-from amex.sim.metrics import SUCCESS_005_RADIUS, EpisodeResult, paper_sum_sq_acc
+from amex.sim.metrics import (
+    SUCCESS_005_RADIUS,
+    EpisodeResult,
+    axis_error,
+    paper_sum_sq_acc,
+    plan_fidelity,
+)
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
 from amex.sim.simulation import MismatchConfig, Simulation
@@ -115,6 +121,34 @@ class Recorder(Protocol):
         """Called once when the episode ends, with its result."""
 
 
+class Trace:
+    """What an episode's metrics need beyond the loop's own state (filled while it runs).
+
+    Attributes:
+        compute_times: wall time of each outer step of the method [s].
+        cpu_times: thread CPU time of each outer step of the method [s].
+        tcp: TCP position at every outer step [m].
+        clearance: smallest arm-obstacle distance at the outer steps so far [m].
+        path_length: length of the TCP path so far, from every inner step [m].
+        axis: the TCP z-axis at the last step.
+    """
+
+    def __init__(self) -> None:
+        self.compute_times: list[float] = []
+        self.cpu_times: list[float] = []
+        self.tcp: list[list[float]] = []
+        self.clearance = math.inf
+        self.path_length = 0.0
+        self.axis: list[float] = [math.nan] * 3
+
+    def outer(self, state: RobotState, collision: CollisionModel | None, data: Any) -> None:
+        """Sample the outer step: its TCP, and its arm-obstacle clearance."""
+        self.tcp.append(state.y_list[:3])
+        self.axis = state.y_list[3:6]
+        if collision is not None:
+            self.clearance = min(self.clearance, collision.min_distance(data))
+
+
 class _Episode:
     """What the loop of one episode works with, built before its first step."""
 
@@ -129,6 +163,7 @@ class _Episode:
         prediction: PredictionConfig | None,
         mismatch: MismatchConfig | None,
         disturbance: DisturbanceConfig | None,
+        reference_path: np.ndarray | None = None,
     ) -> None:
         self.robot, self.method, self.scenario, self.loop = robot, method, scenario, loop
         self.sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
@@ -150,7 +185,9 @@ class _Episode:
         compensation = None if loop.kinematic else disturbance
         self.inner = make_inner_controller(self.osc, self.dt, compensation)
         self.q_history = np.empty((self.n_steps + 1, robot.nv))  # joint angles of every step
-        self.compute_times: list[float] = []
+        self.trace = Trace()
+        self.compute_times = self.trace.compute_times
+        self.reference_path = reference_path
 
     def result(
         self, k: int, t: float, distance: float, sum_sq_acc: float, collided: bool, failure: str
@@ -158,6 +195,13 @@ class _Episode:
         """The episode's row, after its last step ``k`` at time ``t``."""
         scenario, loop, compute_times = self.scenario, self.loop, self.compute_times
         steps = self.q_history[: k + 1]
+        trace = self.trace
+        cpu = trace.cpu_times
+        period = 1.0 / loop.outer_hz
+        goal_end = scenario.goal_at(t)
+        fidelity = math.nan
+        if self.reference_path is not None and len(trace.tcp):
+            fidelity = plan_fidelity(np.array(trace.tcp), self.reference_path, goal_end)
         return EpisodeResult(
             task=scenario.task,
             method=self.method.name,
@@ -176,6 +220,13 @@ class _Episode:
                 paper_sum_sq_acc(steps, self.dt) if np.isfinite(steps).all() else math.nan
             ),
             int_sq_acc=float(sum_sq_acc) * self.dt,
+            compute_cpu_median=float(np.median(cpu)) if cpu else math.nan,
+            compute_cpu_mean=float(np.mean(cpu)) if cpu else math.nan,
+            deadline_misses=float(np.mean(np.asarray(cpu) > period)) if cpu else math.nan,
+            min_clearance=trace.clearance if scenario.n_obstacles else math.nan,
+            final_axis_error=axis_error(trace.axis, scenario.goal_axis),
+            path_length=trace.path_length,
+            plan_fidelity=fidelity,
         )
 
 
@@ -190,6 +241,7 @@ def run_episode(
     prediction: PredictionConfig | None = None,
     mismatch: MismatchConfig | None = None,
     disturbance: DisturbanceConfig | None = None,
+    reference_path: np.ndarray | None = None,
 ) -> EpisodeResult:
     """Execute ``method`` in ``scenario`` and measure it (see :mod:`amex.sim.metrics`).
 
@@ -205,9 +257,20 @@ def run_episode(
         mismatch: how the simulated arm differs from the controller's model (default: none).
         disturbance: compensation of unmodelled torques in the inner controller (default: none,
             the paper's controller); see :mod:`amex.control.disturbance`.
+        reference_path: the reference plan's TCP positions, shape (N + 1, 3) [m], for
+            ``plan_fidelity`` (NaN without it).
     """
     episode = _Episode(
-        robot, method, scenario, gains, loop, perception, prediction, mismatch, disturbance
+        robot,
+        method,
+        scenario,
+        gains,
+        loop,
+        perception,
+        prediction,
+        mismatch,
+        disturbance,
+        reference_path,
     )
     result = _run(episode, recorder)
     if recorder is not None:
@@ -239,7 +302,7 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
     kinematic = loop.kinematic
     detect_contacts = kinematic and scenario.n_obstacles > 0
     no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
-    q_history, compute_times = e.q_history, e.compute_times
+    q_history = e.q_history
     lag = loop.state_lag
     seen_tcp: list[float] | None = None  # the lagging TCP position of the stop rule
     seen_y: np.ndarray | None = None  # the lagging task state methods see
@@ -251,6 +314,9 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
     distance = math.inf
     t = 0.0
     k = 0
+    trace = e.trace
+    tcp_prev = None
+    state: RobotState | None = None
     try:
         for k in range(n_steps + 1):
             t = k * dt
@@ -260,6 +326,12 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
             v = mjd.qvel.copy() if outer else mjd.qvel
             state = RobotState(robot, pdata, q, v)
             q_history[k] = q
+            tx, ty, tz = tcp = state.y_list[:3]
+            if tcp_prev is not None:  # the TCP path's length, step by step
+                trace.path_length += math.sqrt(
+                    (tx - tcp_prev[0]) ** 2 + (ty - tcp_prev[1]) ** 2 + (tz - tcp_prev[2]) ** 2
+                )
+            tcp_prev = tcp
             if t <= goal_moves_until:
                 goal = scenario.goal_at(t)
                 gx, gy, gz = goal.tolist()
@@ -275,6 +347,7 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
                 if collision is not None:
                     collision.set_obstacles(obstacles)
             if outer:
+                trace.outer(state, collision, pdata)
                 seen = goal if sensor is None else sensor.measure(t)
                 obs = Observation(
                     t=t,
@@ -286,7 +359,7 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
                     obstacles=obstacles,
                     obstacle_radii=radii,
                 )
-                command = _method_step(method, obs, k == 0, compute_times, robot.nv)
+                command = _method_step(method, obs, k == 0, trace, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
                     break
             if lag:  # what the next step's stop rule and observation see
@@ -320,13 +393,15 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
         raise  # a record could not be written (a full disk): the run stops, the episode is redone
     except AmexError as error:
         failure = f"solver: {error}"
+    if state is not None:
+        trace.axis = state.y_list[3:6]
     return e.result(k, t, distance, sum_sq_acc, collided, failure)
 
 
 def _method_step(
-    method: Method, obs: Observation, first: bool, compute_times: list[float], n_joints: int
+    method: Method, obs: Observation, first: bool, trace: Trace, n_joints: int
 ) -> Command:
-    """The method's outer step (reset first at t = 0), timed; its answer checked.
+    """The method's outer step (reset first at t = 0), timed (wall and thread CPU); checked.
 
     A malformed answer, or any exception of a method other than ours (a plugin: an
     ``Exception`` or ``SystemExit``), ends the episode as a :class:`SimulationError` whose reason
@@ -335,9 +410,10 @@ def _method_step(
     try:
         if first:
             method.reset(obs)
-        tic = time.perf_counter_ns()
+        tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
         command = method.step(obs)
-        compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
+        trace.cpu_times.append((time.thread_time_ns() - cpu) * 1e-9)
+        trace.compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
     except AmexError:
         raise
     except (Exception, SystemExit) as error:

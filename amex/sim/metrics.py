@@ -23,6 +23,20 @@
   sample: most of the paper's AMEX and CR values.
 * ``compute_time_median`` / ``compute_time_mean``: wall time of the method's own outer step
   (``Method.step``), median and mean over the episode [s].
+* ``compute_cpu_median`` / ``compute_cpu_mean``: the same on the thread's CPU time [s]: what a
+  step costs, whatever else the machine does (compute claims are judged on it).
+* ``deadline_misses``: the fraction of outer steps whose thread CPU time exceeded the outer
+  period ``1 / outer_hz`` [-].
+* ``min_clearance``: the smallest arm-obstacle distance at the outer steps [m] (negative:
+  penetration; NaN in a scene without obstacles).
+* ``final_axis_error``: the angle between the TCP z-axis and the goal axis at the end [rad].
+* ``path_length``: the length of the TCP path over every inner step [m].
+* ``plan_fidelity``: how far the executed TCP path is from the reference plan's shape moved to
+  the goal's final position [m]: with the reference TCP positions ``R_k`` (k = 0..N, ``R_N`` its
+  goal) and the goal ``g_T`` where the episode ended, the moved shape is the polyline through
+  ``R'_k = R_k + (k / N) (g_T - R_N)``, and the fidelity is the mean, over the TCP positions at
+  the outer steps, of their distance to that polyline. Method-independent; 0 for a TCP that
+  follows the reference exactly on Task 0 (there ``g_T = R_N``).
 * ``failure``: empty, or why the episode ended early (``nan``, ``diverged``, ``solver: ...``).
 
 Aggregates over a run are mean and 2 x standard deviation (population std, as Fig. 5's
@@ -60,6 +74,13 @@ class EpisodeResult:
     failure: str
     sum_sq_acc_paper: float = math.nan
     int_sq_acc: float = math.nan
+    compute_cpu_median: float = math.nan
+    compute_cpu_mean: float = math.nan
+    deadline_misses: float = math.nan
+    min_clearance: float = math.nan
+    final_axis_error: float = math.nan
+    path_length: float = math.nan
+    plan_fidelity: float = math.nan
 
     def as_row(self) -> dict[str, Any]:
         """The row as a dict in column order."""
@@ -70,7 +91,13 @@ COLUMNS: tuple[str, ...] = tuple(f.name for f in fields(EpisodeResult))
 #: The columns every episodes.csv has; later ones (added metrics) may be missing in old files.
 REQUIRED_COLUMNS: tuple[str, ...] = COLUMNS[: COLUMNS.index("failure") + 1]
 #: Columns whose values depend on the machine's speed, not on the simulation.
-TIMING_COLUMNS = ("compute_time_median", "compute_time_mean")
+TIMING_COLUMNS = (
+    "compute_time_median",
+    "compute_time_mean",
+    "compute_cpu_median",
+    "compute_cpu_mean",
+    "deadline_misses",
+)
 #: The metrics aggregated as mean and 2 std (Fig. 5's columns plus ours).
 AGGREGATED = (
     "success",
@@ -83,6 +110,13 @@ AGGREGATED = (
     "int_sq_acc",
     "compute_time_median",
     "compute_time_mean",
+    "compute_cpu_median",
+    "compute_cpu_mean",
+    "deadline_misses",
+    "min_clearance",
+    "final_axis_error",
+    "path_length",
+    "plan_fidelity",
 )
 
 
@@ -130,3 +164,37 @@ def paper_sum_sq_acc(q: np.ndarray, dt: float, digits: int = 6) -> float:
     rounded = round_significant(q, digits)
     qdd = np.gradient(np.gradient(rounded, dt, axis=0), dt, axis=0)
     return float(np.sum(qdd * qdd))
+
+
+def axis_error(axis: Any, goal_axis: Any) -> float:
+    """The angle between two axes [rad] (NaN if either is not finite or zero)."""
+    a, g = np.asarray(axis, dtype=float), np.asarray(goal_axis, dtype=float)
+    norms = float(np.linalg.norm(a) * np.linalg.norm(g))
+    if not (math.isfinite(norms) and norms > 0.0):
+        return math.nan
+    return float(math.acos(min(1.0, max(-1.0, float(a @ g) / norms))))
+
+
+def plan_fidelity(tcp: np.ndarray, reference: np.ndarray, goal_end: np.ndarray) -> float:
+    """``plan_fidelity`` (module notes): mean distance of ``tcp`` to the moved reference [m].
+
+    Args:
+        tcp: TCP positions at the outer steps, shape (J, 3) [m].
+        reference: the reference plan's TCP positions, shape (N + 1, 3) [m].
+        goal_end: the goal where the episode ended, shape (3,) [m].
+    """
+    R = np.asarray(reference, dtype=float)[:, :3]
+    P = np.asarray(tcp, dtype=float)
+    if len(R) < 2 or not len(P) or not np.isfinite(P).all():
+        return math.nan
+    u = np.linspace(0.0, 1.0, len(R))[:, None]
+    moved = R + u * (np.asarray(goal_end, dtype=float)[:3] - R[-1])
+    A, D = moved[:-1], np.diff(moved, axis=0)  # segments A + w D, w in [0, 1]
+    dd = np.einsum("ij,ij->i", D, D)
+    total = 0.0
+    for chunk in np.array_split(P, max(1, len(P) // 256)):  # bounded memory
+        rel = chunk[:, None, :] - A[None, :, :]
+        w = np.clip(np.einsum("jik,ik->ji", rel, D) / np.where(dd > 0.0, dd, 1.0), 0.0, 1.0)
+        gap = rel - w[..., None] * D[None, :, :]
+        total += float(np.sqrt(np.einsum("jik,jik->ji", gap, gap).min(axis=1)).sum())
+    return total / len(P)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -73,3 +75,74 @@ def test_a_state_lag_of_one_step_changes_an_episode_only_slightly(context):
         config.state_lag = False
     assert lagging.success and lagging.final_time >= base.final_time
     assert lagging.final_time - base.final_time <= 0.01
+
+
+def test_plan_fidelity_is_zero_on_the_reference_and_the_distance_off_it():
+    from amex.sim.metrics import plan_fidelity
+
+    s = np.linspace(0.0, 1.0, 401)[:, None]
+    ref = np.hstack([0.3 * s, 0.1 * np.sin(np.pi * s), 0.0 * s])
+    assert plan_fidelity(ref[::4], ref, ref[-1]) == pytest.approx(0.0, abs=1e-12)
+    goal = ref[-1] + [0.0, 0.0, 0.05]  # the goal ended 5 cm higher: the shape moves with it
+    moved = ref + s * (goal - ref[-1])
+    assert plan_fidelity(moved[::4], ref, goal) == pytest.approx(0.0, abs=1e-12)
+    off = ref[::4] + [0.0, 0.0, 0.01]  # 1 cm above the unmoved path, which stays the shape
+    assert plan_fidelity(off, ref, ref[-1]) == pytest.approx(0.01, rel=1e-6)
+
+
+def test_the_final_axis_error_is_the_angle_between_the_axes():
+    from amex.sim.metrics import axis_error
+
+    assert axis_error([0, 0, -1], [0, 0, -1]) == 0.0
+    assert axis_error([1, 0, 0], [0, 0, -1]) == pytest.approx(np.pi / 2)
+    assert np.isnan(axis_error([np.nan, 0, 0], [0, 0, 1]))
+
+
+def test_the_new_metrics_come_with_every_episode(context):
+    config, ctx = context
+    result = run_one(config, ctx, 0)
+    assert result.path_length > 0.0 and result.plan_fidelity >= 0.0
+    assert 0.0 <= result.final_axis_error < 0.1 and np.isnan(result.min_clearance)  # Task 0
+    assert 0.0 <= result.compute_cpu_median and result.deadline_misses == 0.0
+
+
+def test_deadline_misses_count_the_steps_over_the_period_on_cpu_time(context):
+    import time
+
+    from amex.methods import Method
+    from amex.sim.episode import run_episode
+    from amex.sim.scenario import make_scenario
+
+    config, ctx = context
+
+    class Busy(Method):  # burns 15 ms of CPU on every other step, sleeps 15 ms on the rest
+        name = "busy"
+
+        def __init__(self):
+            self.k = 0
+            self.target = ctx.plan.y[-1].copy()
+
+        @classmethod
+        def from_plan(cls, plan, config, dt, robot=None):  # pragma: no cover
+            raise NotImplementedError
+
+        def reset(self, obs):
+            pass
+
+        def step(self, obs):
+            self.k += 1
+            end = time.thread_time() + 0.015
+            if self.k % 2:
+                while time.thread_time() < end:
+                    pass
+            else:
+                time.sleep(0.015)  # wall time, no CPU: no deadline missed
+            from amex.core.types import Command
+
+            return Command(y=self.target, yd=np.zeros(6))
+
+    loop = dataclasses.replace(config.loop, max_time=0.2)
+    scenario = make_scenario(config.scene(), 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    result = run_episode(ctx.robot, Busy(), scenario, config.gains(), loop)
+    assert result.deadline_misses == pytest.approx(0.5, abs=0.06)
+    assert result.compute_time_median > 0.01  # wall time counts the sleeps too
