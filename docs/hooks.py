@@ -60,7 +60,10 @@ class Node(NamedTuple):
 
 
 def attribute_docs(cls: type) -> dict[str, str]:
-    """The ``Attributes:`` entries of ``cls`` and its bases (the nearest class wins), one line each."""
+    """The ``Attributes:`` entries of ``cls`` and its bases (the nearest class wins), one line each.
+
+    A line at an entry's indentation that is not ``name: description`` continues that entry.
+    """
     docs: dict[str, str] = {}
     for klass in reversed(cls.__mro__):
         docs.update(_attributes_section(klass.__dict__.get("__doc__") or ""))
@@ -181,8 +184,10 @@ def _limits(f: dataclasses.Field, integer: bool) -> str:
 
 
 def field_row(cls: type, f: dataclasses.Field, prefix: str, nested: set[type]) -> Row:
-    """The row of field ``f`` of dataclass ``cls``; a field whose type is in ``nested`` links to
-    its own table instead of showing its default inline."""
+    """The row of field ``f`` of dataclass ``cls``.
+
+    A field whose type is in ``nested`` links to its own table instead of showing its default.
+    """
     from amex.core.scaling import SCALE_KEY
 
     default = _default(f)
@@ -242,7 +247,7 @@ def _anchor(key: str) -> str:
 # The page
 
 
-def builtin_methods() -> dict[str, type]:
+def builtin_methods() -> dict[str, Any]:
     """The registered methods that amex itself defines (plugins installed here are left out)."""
     from amex.methods import METHODS
 
@@ -281,7 +286,8 @@ def config_nodes() -> list[Node]:
         value = getattr(root, f.name)
         if f.name != "method" and type(value) in nested:
             cls = type(value)
-            nodes.append(Node(f"`{f.name}`", f"{f.name}.", cls, node_rows(cls, f"{f.name}.", set())))
+            rows = node_rows(cls, f"{f.name}.", set())
+            nodes.append(Node(f"`{f.name}`", f"{f.name}.", cls, rows))
     for name, method in builtin_methods().items():
         cls = method.config_class
         nodes.append(Node(f"`method={name}`", "method.", cls, node_rows(cls, "method.", set())))
@@ -343,9 +349,9 @@ def _gain_types(nodes: list[Node]) -> list[type]:
             if node.prefix == "" and f.name == "method":  # its own tables, one per method
                 continue
             value = _default(f)
-            if dataclasses.is_dataclass(value) and not isinstance(value, type):
-                if not any(n.cls is type(value) for n in nodes):
-                    seen.setdefault(type(value).__name__, type(value))
+            inline = dataclasses.is_dataclass(value) and not isinstance(value, type)
+            if inline and not any(n.cls is type(value) for n in nodes):
+                seen.setdefault(type(value).__name__, type(value))
     return [seen[k] for k in sorted(seen)]
 
 
