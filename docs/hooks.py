@@ -175,7 +175,10 @@ def _clean(text: str) -> str:
     """Docstring text for a table cell: Sphinx roles as code, ``literals`` as code, no pipes."""
     text = re.sub(r":(?:mod|func|class|meth|data|attr|obj):`~?([^`]+)`", r"`\1`", text)
     text = re.sub(r"``([^`]+)``", r"`\1`", text)
-    return text.replace("|", "\\|").strip()
+    text = text.replace("||", "‖")  # a norm; a table cell cannot hold a pipe inside code
+    parts = text.split("`")  # odd parts are code spans, where an escaped pipe shows its backslash
+    parts = [p.replace("|", "∣" if i % 2 else "\\|") for i, p in enumerate(parts)]
+    return "`".join(parts).strip()
 
 
 def _limits(f: dataclasses.Field, integer: bool) -> str:
@@ -365,6 +368,12 @@ def _first_line(doc: str | None) -> str:
     return _clean(inspect.cleandoc(doc or "").split("\n\n")[0].replace("\n", " "))
 
 
+def _described(cls: type) -> str:
+    """The summary line of ``cls``, then its dotted name in parentheses."""
+    name = f"{cls.__module__}.{cls.__qualname__}"
+    return f"{_first_line(cls.__doc__).rstrip('.')} (`{name}`)."
+
+
 def config_reference() -> str:
     """The configuration reference page, as Markdown."""
     nodes = config_nodes()
@@ -392,8 +401,7 @@ def config_reference() -> str:
         elif not node.prefix:
             anchor = "top-level"
         out += [f"## {node.title} {{#{anchor}}}", ""]
-        name = f"{node.cls.__module__}.{node.cls.__qualname__}"
-        out += [f"{_first_line(node.cls.__doc__)} (`{name}`)", ""]
+        out += [_described(node.cls), ""]
         out += _table(node.rows)
         out.append("")
     chosen = group_defaults()
@@ -414,9 +422,8 @@ def config_reference() -> str:
     out.append("")
     for cls in _gain_types(nodes):
         out += [f"## `{cls.__name__}` {{#{_anchor(cls.__name__)}}}", ""]
-        name = f"{cls.__module__}.{cls.__qualname__}"
         out += [
-            f"{_first_line(cls.__doc__)} (`{name}`). Written inline, e.g. "
+            f"{_described(cls)} Written inline, e.g. "
             f"`controller.col={{kp: 2500, kd: 100, weight: 10}}`, or one field at a time, "
             f"`controller.col.kp=2500`.",
             "",
