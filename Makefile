@@ -114,3 +114,25 @@ ablation: $(STAMP)
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache .mypy_cache
+
+## The documentation site (MkDocs + Material + mkdocstrings) into site/: the docs tests (generated
+## tables, project files, the site's checks), then a strict build, so that a warning, a link to a
+## missing page or a missing anchor fails it. The docs extra is installed on demand.
+.PHONY: docs docs-serve docs-tables
+DOCS_STAMP := $(VENV)/.docs-stamp
+$(DOCS_STAMP): $(STAMP) pyproject.toml
+	$(BIN)/python -m pip install --quiet -e ".[dev,bench,docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	$(BIN)/python -m pytest -q tests/docs
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
+
+## The site on http://127.0.0.1:8000/ (this machine only), rebuilt on every change.
+docs-serve: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve --dev-addr 127.0.0.1:8000
+
+## The results tables the pages include (docs/generated/), written again by the analysis commands
+## from the runs committed under docs/data/ (tests/docs/ fails when they differ).
+docs-tables: $(STAMP)
+	$(BIN)/python docs/hooks.py
