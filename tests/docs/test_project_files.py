@@ -8,6 +8,8 @@ from pathlib import Path
 import pytest
 import yaml
 
+import amex
+
 ROOT = Path(__file__).resolve().parents[2]
 README = ROOT / "README.md"
 
@@ -45,7 +47,7 @@ def test_the_licence_is_mit_held_by_the_amex_developers():
 def test_the_citation_file_names_the_software_and_the_paper():
     cff = yaml.safe_load((ROOT / "CITATION.cff").read_text())
     assert cff["cff-version"] == "1.2.0" and cff["type"] == "software"
-    assert cff["version"] == "0.2.0" and cff["license"] == "MIT"
+    assert cff["version"] == amex.__version__ and cff["license"] == "MIT"  # one version
     title = "Reactive Phase and Task Space Adaptation for Robust Motion Execution"
     for paper in (cff["preferred-citation"], *cff["references"]):
         assert paper["title"] == title
