@@ -23,7 +23,8 @@ from typing import Any, NoReturn
 from amex.app.argparsing import OneLineParser, fail
 from amex.core.errors import AmexError, LogError
 from amex.log.files import refuse_existing, write_new
-from amex.log.reader import LogData, read_log, recover
+from amex.log.reader import LogData, read_log
+from amex.log.recover import recover
 from amex.log.serve import DEFAULT_PORT
 
 PROG = "amex-log"

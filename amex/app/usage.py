@@ -95,14 +95,12 @@ def _options_of(conf_dirs: list[Path], group: str, recursive: bool = False) -> l
     return [found[name] for name in sorted(found)]
 
 
-def help_text(conf_dirs: Path | list[Path], prog: str = "amex-run") -> str:
-    """The whole ``--help`` text; ``conf_dirs``: the user's config directories, then amex's."""
+def _methods(dirs: list[Path]) -> list[tuple[str, str]]:
+    """Every registered method (built-ins by their config's header, plugins by their class)."""
     from amex.methods import BUILTIN_METHODS, METHODS
 
-    dirs = [conf_dirs] if isinstance(conf_dirs, Path) else list(conf_dirs)
-    conf_dir = dirs[-1]  # amex's own: the primary config and the built-in methods
-    methods = []
-    user_methods = {p.stem: p for p in _options_of(dirs[:-1], "method")}
+    conf_dir = dirs[-1]
+    rows = []
     for name in sorted(METHODS):
         yaml_file = conf_dir / "method" / f"{name}.yaml"
         if name in BUILTIN_METHODS and yaml_file.exists():
@@ -110,62 +108,29 @@ def help_text(conf_dirs: Path | list[Path], prog: str = "amex-run") -> str:
         else:
             doc = (METHODS[name].__doc__ or "").strip().splitlines()
             text = (doc[0] if doc else "") + f" (plugin: {METHODS[name].__module__})"
-        methods.append((name, text))
-    methods += [(n, describe(p) + " (yours)") for n, p in user_methods.items() if n not in METHODS]
+        rows.append((name, text))
+    users = {p.stem: p for p in _options_of(dirs[:-1], "method")}
+    return rows + [(n, describe(p) + " (yours)") for n, p in users.items() if n not in METHODS]
 
-    def listed(group: str, recursive: bool = False) -> list[tuple[str, str]]:
-        base_of = {p: d / group for d in dirs for p in _options_of([d], group, recursive)}
-        rows = []
-        for path in _options_of(dirs, group, recursive):
-            name = path.relative_to(base_of[path]).with_suffix("").as_posix()
-            mine = "" if base_of[path].parent == conf_dir else " (yours)"
-            rows.append((name, describe(path) + mine))
-        return rows
 
-    robots = listed("robot")
-    experiments = listed("experiment", recursive=True)
-    studies = listed("study")
-    config_yaml = conf_dir / "config.yaml"
-    options, groups = _options(config_yaml)
-    composed = yaml.safe_load(config_yaml.read_text())
+def _listed(dirs: list[Path], group: str, recursive: bool = False) -> list[tuple[str, str]]:
+    """The options of a config group from every directory, the user's marked as theirs."""
+    base_of = {p: d / group for d in dirs for p in _options_of([d], group, recursive)}
+    rows = []
+    for path in _options_of(dirs, group, recursive):
+        name = path.relative_to(base_of[path]).with_suffix("").as_posix()
+        mine = "" if base_of[path].parent == dirs[-1] else " (yours)"
+        rows.append((name, describe(path) + mine))
+    return rows
+
+
+def _outputs(composed: dict) -> list[str]:
+    """Where runs and sweeps write, from the primary config's ``hydra`` section."""
     hydra = composed.get("hydra", {})
     run_dir = hydra.get("run", {}).get("dir", "")
     sweep = hydra.get("sweep", {})
     sweep_dir = f"{sweep.get('dir', '')}/{sweep.get('subdir', '')}"
-    default_robot = next(
-        (d["robot"] for d in composed["defaults"] if isinstance(d, dict) and "robot" in d), ""
-    )
-    lines = [
-        f"{prog}: the benchmark of Englert & Toussaint (IROS 2014): AMEX, DMPs and continuous",
-        "replanning on identical scenes. Arguments are Hydra overrides KEY=VALUE.",
-        "",
-        f"usage: {prog} [KEY=VALUE ...]             one run (e.g. task=3 method=amex episodes=20)",
-        f"       {prog} -m KEY=A,B [KEY=VALUE ...]  a sweep: every combination, one job per core",
-        f"       {prog} -m ... shards=K             ... every cell split over K jobs",
-        f"       {prog} --cfg job [KEY=VALUE ...]   print the composed configuration",
-        f"       {prog} --hydra-help                Hydra's own flags",
-        "",
-        "tasks (task=N):",
-        *_table([(str(k), v) for k, v in TASKS.items()]),
-        "",
-        "methods (method=NAME; parameters method.FIELD=..., conf/method/NAME.yaml):",
-        *_table(methods),
-        "",
-        f"robots (robot=NAME, default {default_robot}; conf/robot/NAME.yaml):",
-        *_table(robots),
-        "",
-        "experiments (experiment=NAME: a named set of overrides, conf/experiment/NAME.yaml):",
-        *_table(experiments or [("(none)", "")]),
-        "",
-        "studies (-m study=NAME: a sweep, its cells in conf/study/NAME.yaml; analysis/NAME.py):",
-        *_table(studies or [("(none)", "")]),
-        "",
-        "main options (default value, unit and meaning):",
-        *_table([(f"{k}={v}", c) for k, v, c in options]),
-        *_table([(f"{k}.*", c or "see --cfg job") for k, c in groups]),
-        *_table([("robot.*", "the arm: robot.q0, robot.urdf, ... (conf/robot/NAME.yaml)"),
-                 ("method.*", "the method's parameters (conf/method/NAME.yaml)")]),  # fmt: skip
-        "",
+    return [
         "outputs:",
         f"  {_pattern(run_dir)}/",
         *_indent(
@@ -181,6 +146,51 @@ def help_text(conf_dirs: Path | list[Path], prog: str = "amex-run") -> str:
             "make table RUNS=DIR (Fig. 5 as tables), make figures RUNS=DIR (as plots); "
             "amex-log view|video|plot FILE.mcap (a logged episode)"
         ),
+    ]
+
+
+def help_text(conf_dirs: Path | list[Path], prog: str = "amex-run") -> str:
+    """The whole ``--help`` text; ``conf_dirs``: the user's config directories, then amex's."""
+    dirs = [conf_dirs] if isinstance(conf_dirs, Path) else list(conf_dirs)
+    config_yaml = dirs[-1] / "config.yaml"  # amex's own primary config
+    options, groups = _options(config_yaml)
+    composed = yaml.safe_load(config_yaml.read_text())
+    default_robot = next(
+        (d["robot"] for d in composed["defaults"] if isinstance(d, dict) and "robot" in d), ""
+    )
+    lines = [
+        f"{prog}: the benchmark of Englert & Toussaint (IROS 2014): AMEX, DMPs and continuous",
+        "replanning on identical scenes. Arguments are Hydra overrides KEY=VALUE.",
+        "",
+        f"usage: {prog} [KEY=VALUE ...]             one run (e.g. task=3 method=amex episodes=20)",
+        f"       {prog} -m KEY=A,B [KEY=VALUE ...]  a sweep: every combination, one job per core",
+        f"       {prog} -m ... shards=K             ... every cell split over K jobs",
+        f"       {prog} --cfg job [KEY=VALUE ...]   print the composed configuration",
+        f"       {prog} --config-dir DIR ...        with your own experiment/, robot/, ... configs",
+        f"       {prog} --hydra-help                Hydra's own flags",
+        "",
+        "tasks (task=N):",
+        *_table([(str(k), v) for k, v in TASKS.items()]),
+        "",
+        "methods (method=NAME; parameters method.FIELD=..., conf/method/NAME.yaml):",
+        *_table(_methods(dirs)),
+        "",
+        f"robots (robot=NAME, default {default_robot}; conf/robot/NAME.yaml):",
+        *_table(_listed(dirs, "robot")),
+        "",
+        "experiments (experiment=NAME: a named set of overrides, conf/experiment/NAME.yaml):",
+        *_table(_listed(dirs, "experiment", recursive=True) or [("(none)", "")]),
+        "",
+        "studies (-m study=NAME: a sweep, its cells in conf/study/NAME.yaml; analysis/NAME.py):",
+        *_table(_listed(dirs, "study") or [("(none)", "")]),
+        "",
+        "main options (default value, unit and meaning):",
+        *_table([(f"{k}={v}", c) for k, v, c in options]),
+        *_table([(f"{k}.*", c or "see --cfg job") for k, c in groups]),
+        *_table([("robot.*", "the arm: robot.q0, robot.urdf, ... (conf/robot/NAME.yaml)"),
+                 ("method.*", "the method's parameters (conf/method/NAME.yaml)")]),  # fmt: skip
+        "",
+        *_outputs(composed),
         "",
         "Bad input gets one line on stderr and exit code 2; AMEX_DEBUG=1 shows tracebacks.",
     ]

@@ -21,7 +21,7 @@ from amex.methods import IMPLEMENTATIONS, METHODS, MethodConfig
 from amex.plan.reference import PlanConfig
 from amex.robot import RobotConfig, load_robot
 from amex.robot.geometry import METRICS
-from amex.sim.episode import LoopConfig
+from amex.sim.loop import LoopConfig
 from amex.sim.perception import PerceptionConfig, PredictionConfig
 from amex.sim.scenario import TASKS, ScenarioConfig
 from amex.sim.simulation import MismatchConfig

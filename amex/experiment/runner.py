@@ -38,7 +38,8 @@ from amex.plan.cache import reference_costs, reference_plan
 from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
 from amex.robot.geometry import joint_metric
-from amex.sim.episode import LoopConfig, run_episode
+from amex.sim.episode import run_episode
+from amex.sim.loop import LoopConfig
 from amex.sim.metrics import EpisodeResult, summarize
 from amex.sim.scenario import ScenarioConfig, make_scenario, plan_goal, with_reference_goal
 

@@ -19,7 +19,8 @@ from amex.core.errors import (
     NotMcapError,
     TruncatedLogError,
 )
-from amex.log.reader import ChannelInfo, LogData, LogMessage, read_log, recover
+from amex.log.reader import ChannelInfo, LogData, LogMessage, read_log
+from amex.log.recover import recover
 from amex.log.writer import EpisodeLogger
 
 __all__ = [

@@ -14,7 +14,7 @@ chunk's CRC on its own. Either way it tells two cases apart:
   message count, when readable, says how many.
 
 Short reads raise instead of being passed on, so a cut record is never returned as a shorter one.
-:func:`recover` writes what was read as a new, indexed MCAP file.
+:func:`amex.log.recover.recover` writes what was read as a new, indexed MCAP file.
 
 JSON channels are decoded when read; protobuf channels (the Foxglove schemas) stay bytes until
 :meth:`LogData.decoded` decodes them with their own schema (:mod:`amex.log.protobuf`, no protobuf
@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
 import struct
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -33,13 +32,11 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from mcap.writer import CompressionType, Writer
 
 from amex.core.errors import (
     CorruptLogError,
     EmptyLogError,
     LogError,
-    LogExistsError,
     LogNotFoundError,
     NotMcapError,
     TruncatedLogError,
@@ -340,64 +337,6 @@ def _damaged(raw: RawLog, end: IndexedEnd, path: Path, size: int) -> LogData:
     if not raw.messages:
         raise CorruptLogError(f"log file is corrupt ({note}), nothing to recover: {path}")
     return _decode(raw, path, size, False, note, True)
-
-
-def recover(src: Path | str, dst: Path | str) -> LogData:
-    """Rewrite the readable part of ``src`` as a valid, indexed MCAP file ``dst``.
-
-    Schemas, channels, messages (in log-time order) and metadata records are copied unchanged;
-    a metadata record ``recovery`` says where they came from. ``dst`` must not exist.
-
-    Returns:
-        What was read from ``src`` (``truncated`` tells whether it was cut).
-    """
-    src, dst = Path(src), Path(dst)
-    data = read_log(src)
-    if dst.exists():
-        raise LogExistsError(f"output file {dst} already exists; not overwriting it")
-    raw = data._raw
-    if raw is None:  # pragma: no cover - read_log always keeps the records
-        raise LogError(f"no records kept while reading {src}")
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    tmp = dst.with_name(dst.name + ".part")
-    try:
-        with open(tmp, "wb") as f:
-            writer = Writer(f, chunk_size=256 * 1024, compression=CompressionType.ZSTD)
-            writer.start(profile="", library="amex-log recover")
-            schema_ids = {
-                sid: writer.register_schema(s.name, s.encoding, s.data)
-                for sid, s in sorted(raw.schemas.items())
-            }
-            channel_ids = {
-                cid: writer.register_channel(
-                    c.topic, c.message_encoding, schema_ids.get(c.schema_id, 0), dict(c.metadata)
-                )
-                for cid, c in sorted(raw.channels.items())
-            }
-            for record in raw.metadata:
-                writer.add_metadata(record.name, dict(record.metadata))
-            writer.add_metadata(
-                "recovery",
-                {
-                    "source": json.dumps(str(src)),
-                    "source_bytes": json.dumps(data.size),
-                    "truncated": json.dumps(data.truncated),
-                    "corrupt": json.dumps(data.corrupt),
-                    "messages": json.dumps(len(raw.messages)),
-                    "note": json.dumps(data.note),
-                },
-            )
-            for m in raw.messages:
-                writer.add_message(
-                    channel_ids[m.channel_id], m.log_time, m.data, m.publish_time, m.sequence
-                )
-            writer.finish()
-        if dst.exists():
-            raise LogExistsError(f"output file {dst} appeared while writing; kept {tmp}")
-        os.replace(tmp, dst)
-    except OSError as e:
-        raise LogError(f"cannot write {dst}: {e.strerror or e}") from e
-    return data
 
 
 def topics_with_numbers(data: LogData) -> Iterable[str]:

@@ -74,7 +74,7 @@ from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
-    from amex.sim.episode import StepRecord
+    from amex.sim.loop import StepRecord
     from amex.sim.metrics import EpisodeResult
     from amex.sim.scenario import Scenario
 
