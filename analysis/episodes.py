@@ -37,7 +37,7 @@ def duration_invariant_smoothness(sum_sq_acc, final_time):
 
     A motion executed k times slower has k^-2 the accelerations over k times the 1 kHz samples,
     so its sum of squared accelerations falls as k^-3 while this product stays the same
-    (docs/metrics.md). A diagnostic, not one of the paper's metrics [rad^2 s^-1].
+    (``docs/analysis.md``). A diagnostic, not one of the paper's metrics [rad^2 s^-1].
     """
     return sum_sq_acc * final_time**3
 

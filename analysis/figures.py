@@ -34,11 +34,11 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     from amex.core.errors import AmexError
     from amex.experiment.store import StoreError
+    from analysis.episodes import TableError
     from analysis.fig2 import plot_fig2
     from analysis.fig4 import plot_fig4
     from analysis.fig5 import plot_runs
     from analysis.fig6 import plot_run
-    from analysis.table import TableError
 
     written: list[Path] = []
     try:
