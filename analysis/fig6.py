@@ -152,7 +152,7 @@ def plot_fig6(traces: Sequence[Trace], path: Path, title: str) -> Path:
     for ax, (i, j), name in zip(axes[0], ((0, 1), (0, 2)), ("top view", "side view"), strict=True):
         _paths(ax, traces, i, j, name)
     axes[0, 0].legend(fontsize=7, loc="upper left")
-    _over_time(*axes[1], traces)
+    _over_time(axes[1, 0], axes[1, 1], traces)
     fig.suptitle(title)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

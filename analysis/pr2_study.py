@@ -123,7 +123,10 @@ def read_study(runs: Path) -> PR2Study:
         TableError: an ``episodes.csv`` cannot be read, or shards overlap or leave gaps.
     """
     sweep = read_sweep(runs, STUDY)
-    table, variants, fig6, stall = [], {}, [], []
+    table: list[Cell] = []
+    variants: dict[str, list[Cell]] = {}
+    fig6: list[tuple[str, Cell]] = []
+    stall: list[tuple[str, Cell]] = []
     for grid in sweep.grid_names:
         for cell in sweep.grid(grid):
             if cell.grids[0] != grid:  # declared by an earlier grid: counted there
