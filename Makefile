@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-kernels test-viewer render-deps lint bench table figures studies paper ablation ablation-table clean
+.PHONY: install run test test-slow test-kernels test-viewer render-deps lint bench table figure-runs figures studies paper ablation ablation-table clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -77,9 +77,15 @@ ablation-table: $(STAMP)
 	  1_harness=$(ABLATION_DIR)/1_harness 2_controller=$(ABLATION_DIR)/2_controller \
 	  3_methods=$(ABLATION_DIR)/3_methods 4_dynamic=$(ABLATION_DIR)/4_dynamic ours=runs/paper
 
+## The logged runs Fig. 4 and Fig. 6 are drawn from (conf/experiment/fig4.yaml, fig6.yaml): into
+## runs/fig4/ and runs/fig6/, a few seconds; again resumes (nothing left to run).
+figure-runs: $(STAMP)
+	$(BIN)/amex-run -m experiment=fig4
+	$(BIN)/amex-run experiment=fig6
+
 ## Fig. 5 as plots from the runs under $(RUNS), then Fig. 2 (from AMEX itself), Fig. 4 and Fig. 6
-## analogues, into analysis/out/ (PNG and PDF).
-figures: $(STAMP)
+## analogues (from figure-runs' logs), into analysis/out/ (PNG and PDF).
+figures: figure-runs
 	$(BIN)/python -m analysis.figures --runs $(RUNS)
 
 ## Beyond the paper: the robustness (goal speed, noise, prediction) and pr2_like studies, each a

@@ -2,17 +2,10 @@
 
 ``python -m analysis.compare [LABEL=DIR ...] [--out DIR]`` (``make table`` runs it with
 ``original=runs/paper_original ours=runs/paper`` when both exist; ``make ablation-table`` with the
-ablation's steps). Each ``DIR`` is one benchmark configuration (``make table`` splits mixed
-directories). It writes ``compare.md``:
-
-* the numbers: per task and method the success (at 0.03 m and at the paper's counted 0.05 m),
-  the final time, the sum of squared accelerations as the paper computed it
-  (``sum_sq_acc_paper``) and exact (``sum_sq_acc``), for the paper and every benchmark;
-* the same measures with a row per benchmark (the ablation's view: which step moves which
-  number);
-* the paper's claims checked on each: on the paper's own numbers, and on every benchmark as the
-  paper computed its figures (success at 0.05 m, ``sum_sq_acc_paper``) and exactly (success at
-  0.03 m, ``sum_sq_acc``).
+ablation's steps), one benchmark configuration per ``DIR``. Writes ``compare.md``: per task and
+method the success (at 0.03 m and 0.05 m), the final time and the sum of squared accelerations
+(exact and as the paper computed it) for the paper and every benchmark, the same with a row per
+benchmark, and the paper's claims checked on each, as the paper counted and exactly.
 """
 
 from __future__ import annotations
@@ -26,7 +19,8 @@ import pandas as pd
 from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
 from analysis.comparisons import claims
-from analysis.table import HERE, TableError, aggregate, benchmarks, load_runs, paper_table
+from analysis.episodes import TableError, load_runs
+from analysis.table import HERE, aggregate, benchmarks, paper_table
 
 DEFAULTS = (("original", Path("runs/paper_original")), ("ours", Path("runs/paper")))
 PAPER_METHODS = ("amex", "dmp", "cr")

@@ -1,15 +1,17 @@
-"""Paired comparisons of methods on identical environments, and the paper's claims checked.
+"""Paired comparisons on identical environments, and the paper's claims checked.
 
 :func:`paired`: every two methods that ran the same environments of a task (a before b in
-:data:`METHOD_ORDER`, then other methods by name), per metric the mean difference a - b, a
-bootstrap 95 % interval and the Wilcoxon signed-rank p-value. :func:`claims`: the paper's
-qualitative claims on the aggregates of :func:`analysis.table.aggregate`, each "holds", "fails",
-"n/a", or "too few" when judged on fewer than :data:`MIN_EPISODES` environments per method.
+:data:`METHOD_ORDER`, then other methods by name); :func:`paired_stats`: any two sets of episodes
+(the studies' cells). Per metric the mean difference a - b, a bootstrap 95 % interval and the
+Wilcoxon signed-rank p-value. :func:`claims`: the paper's qualitative claims on the aggregates of
+:func:`analysis.table.aggregate`, each "holds", "fails", "n/a", or "too few" when judged on fewer
+than :data:`MIN_EPISODES` environments per method.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pandas as pd
@@ -17,6 +19,8 @@ import pandas as pd
 METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
 MIN_EPISODES = 30  # fewer environments per method: a claim is "too few", not holds / fails
 PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_paper", "sum_sq_acc_t3")
+#: The metrics :func:`paired_stats` compares by default (the studies' cells).
+STUDY_METRICS = ("final_time", "success", "sum_sq_acc", "final_distance")
 BOOTSTRAP = 10_000
 
 
@@ -66,6 +70,42 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
                             "wilcoxon_p": p,
                         }
                     )
+    return pd.DataFrame.from_records(records)
+
+
+def paired_stats(
+    a: pd.DataFrame, b: pd.DataFrame, metrics: Sequence[str] = STUDY_METRICS
+) -> pd.DataFrame:
+    """Episodes ``a`` minus episodes ``b`` on the environments both ran, one row per metric.
+
+    Each row: pairs, the two means, the mean difference, its bootstrap 95 % interval
+    (:func:`bootstrap_ci`) and the Wilcoxon signed-rank p (NaN below 2 pairs).
+    """
+    from scipy.stats import wilcoxon
+
+    wide_a, wide_b = a.set_index("env"), b.set_index("env")
+    envs = wide_a.index.intersection(wide_b.index).sort_values()
+    records = []
+    for metric in metrics:
+        va = wide_a.loc[envs, metric].astype(float).to_numpy()
+        vb = wide_b.loc[envs, metric].astype(float).to_numpy()
+        d = va - vb
+        lo, hi = bootstrap_ci(d) if len(d) else (math.nan, math.nan)
+        p = math.nan
+        if len(d) >= 2:
+            p = 1.0 if np.all(d == 0) else float(wilcoxon(d, zero_method="zsplit").pvalue)
+        records.append(
+            {
+                "metric": metric,
+                "pairs": len(d),
+                "mean_a": float(va.mean()) if len(d) else math.nan,
+                "mean_b": float(vb.mean()) if len(d) else math.nan,
+                "mean_diff": float(d.mean()) if len(d) else math.nan,
+                "ci_low": lo,
+                "ci_high": hi,
+                "wilcoxon_p": p,
+            }
+        )
     return pd.DataFrame.from_records(records)
 
 

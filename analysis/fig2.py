@@ -1,16 +1,10 @@
 """The paper's Fig. 2, drawn by the AMEX class itself: 2-D plans and phase s(t), perfect execution.
 
-(a) the goal is offset before the start and stays put; (b) the goal starts at the reference goal
-and moves during the first 70 % of T_ref (dots: its positions). Perfect execution means the robot
-reaches every command exactly (``y <- y*``), as the paper assumes for this figure, so the drawn
-paths are the adapted plans tau_plan the robot executes; a run ends when the final approach has
-brought the robot within 1e-3 of the goal. Run ``python analysis/fig2.py``.
-
-Two versions: ``fig2_amex.png`` with a constant-speed reference (like the paper's figure: phase
-linear in time for a fixed goal), and ``fig2_amex_rest_to_rest.png`` with minimum-jerk timing,
-like the benchmark's optimized plans. There the reference is at rest at s = 0 and s = 1, so near
-both ends Eq. 7's offset, affine in the *phase*, dominates the plan's tangent: the paths leave
-and approach along the goal offset, and the phase slows down before the end.
+(a) the goal offset before the start, (b) the goal moving during the first 70 % of T_ref; with a
+constant-speed reference (``fig2_amex.png``) and a rest-to-rest one
+(``fig2_amex_rest_to_rest.png``). The robot reaches every command exactly (``y <- y*``), so the
+paths are the adapted plans; a run ends within 1e-3 of the goal in the final approach. What the
+two versions show: ``docs/analysis.md``. Run ``python analysis/fig2.py``.
 """
 
 from __future__ import annotations

@@ -1,24 +1,17 @@
 """The paper's Fig. 4 on the Panda: one Task-3 scene with the executed paths of AMEX, DMP and CR.
 
-As in the paper: the obstacle is a black ball, the goal is gold (a ring where it starts, a star
-where it ends, its path between), the reference plan (planned without the obstacle) is red; each
-method's executed TCP path has its colour of :mod:`amex.core.palette` (AMEX blue, DMP green, CR
-purple), the same in every panel, the render included. A moving obstacle (Task 4) is drawn with its
-path. Each episode is run here and logged to MCAP in a temporary directory, then read back with
-:func:`amex.log.read_log` (or read from the logs given), so the figure shows exactly what
-``amex-log`` shows.
-
-Two views: (a) a MuJoCo offscreen render of the scene (:mod:`amex.log.render`: the arm as the
-log's URDF describes it, at the end of the first method's episode), if headless OpenGL works here
-(otherwise (a) says why it is missing); (b) a labelled 3-D plot, with top and side projections
-below. Run ``python -m analysis.fig4 [OUT_DIR] [OVERRIDES]``, e.g. ``robot=chain7`` or
-``experiment=original``: the arm, the scene and the camera (aimed at the paths) follow them.
+Drawn from the episode logs of ``amex-run -m experiment=fig4`` (``conf/experiment/fig4.yaml``:
+Task 3, environment 0, every method logged into ``runs/fig4/``), read with
+:func:`amex.log.read_log`, so the figure shows exactly what ``amex-log`` shows. As in the paper:
+a black obstacle, the goal in gold (a ring where it starts, a star where it ends), the reference
+plan in red, each method's TCP path in its colour of :mod:`amex.core.palette`. Panels: (a) a
+MuJoCo offscreen render (:mod:`amex.log.render`; if headless OpenGL works here, else it says
+why), (b) a 3-D plot, (c, d) top and side views. Runs of another arm or scene
+(``robot=chain7``) give their own figure: ``python -m analysis.fig4 [RUNS] [--out DIR]``.
 """
 
 from __future__ import annotations
 
-import sys
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,8 +31,6 @@ from amex.log.plot3d import set_equal_axes_3d
 
 TASK = 3
 ENV = 0  # the Task-3 environment drawn (a goal the obstacle sits right in front of)
-SEED = 0
-FIG4_METHODS = ("amex", "dmp", "cr")
 GOAL_START = {"marker": "o", "facecolor": "white", "edgecolor": GOAL_COLOR, "linewidths": 2.5}
 GOAL_END = {"marker": "*", "color": GOAL_COLOR, "edgecolor": "k", "linewidths": 0.6}
 
@@ -91,63 +82,51 @@ def episode_from_log(path: Path | str) -> Episode:
     )
 
 
-def run_logged(
-    task: int,
-    env: int,
-    methods: list[str],
-    out_dir: Path,
-    seed: int = SEED,
-    overrides: tuple[str, ...] = (),
-) -> dict:
-    """Run environment ``env`` of ``task`` with each method, logged into ``out_dir``; read back.
+def logs_of(runs: Path) -> tuple[dict[str, Path], tuple[str, ...]]:
+    """The first episode log of each run under ``runs`` by method, in the paper's order, and the
+    overrides those runs share besides ``experiment`` and ``method`` (e.g. ``robot=chain7``).
 
-    ``overrides`` are command-line overrides of every run (``robot=chain7``,
-    ``experiment=original``): the figure follows the robot and the scene they choose.
+    Raises:
+        StudyError: no logged run there.
     """
-    from amex.app.cli import load_config
-    from amex.experiment.runner import prepare, run_one
+    from analysis.comparisons import method_rank
+    from analysis.sweep import StudyError, read_yaml
 
-    episodes = {}
-    for name in methods:
-        config = load_config([f"task={task}", f"method={name}", f"seed={seed}", *overrides])
-        path = out_dir / f"task{task}_env{env:03d}_{name}.mcap"
-        if not path.exists():
-            run_one(config, prepare(config), env, path)
-        episodes[name] = episode_from_log(path)
-    return episodes
-
-
-def available_methods() -> list[str]:
-    """The methods of Fig. 4 that are registered now."""
-    from amex.methods import METHODS
-
-    return [m for m in FIG4_METHODS if m in METHODS]
+    found: dict[str, Path] = {}
+    shared: set[str] | None = None
+    for log in sorted(runs.glob(f"*/logs/episode_{ENV:03d}.mcap")):
+        run = log.parent.parent
+        config = read_yaml(run / ".hydra" / "config.yaml") or {}
+        found[str(config.get("method", {}).get("name", run.name))] = log
+        overrides = {str(o) for o in read_yaml(run / ".hydra" / "overrides.yaml") or []}
+        shared = overrides if shared is None else shared & overrides
+    if not found:
+        raise StudyError(f"{runs}: no logged runs; run `amex-run -m experiment=fig4`")
+    skip = ("experiment=", "method=", "hydra.")
+    common = tuple(sorted(o for o in shared or () if not o.startswith(skip)))
+    return {m: found[m] for m in sorted(found, key=method_rank)}, common
 
 
-def plot_fig4(
-    out_dir: Path | str,
-    runs_or_none: Mapping[str, Path | str] | None = None,
-    overrides: tuple[str, ...] = (),
-) -> list[Path]:
-    """Draw Fig. 4 into ``out_dir/fig4_task3.png``; return ``[its path]`` (like ``plot_fig2``).
+def plot_fig4(runs: Path | str, out_dir: Path | str) -> list[Path]:
+    """Draw Fig. 4 from the logged runs under ``runs`` (``amex-run -m experiment=fig4``).
 
-    Args:
-        out_dir: where the PNG goes.
-        runs_or_none: MCAP logs of one environment by method name (e.g. from
-            ``amex-run task=3 method=amex episodes=1 log=full``); None runs environment
-            :data:`ENV` of Task 3 with every registered method among AMEX, DMP and CR.
-        overrides: command-line overrides of those runs (e.g. ``robot=chain7``).
+    Writes ``out_dir/fig4_task3.png`` (with a suffix for each override the runs share, e.g.
+    ``fig4_task3_chain7.png``) and returns ``[its path]``.
     """
+    logs, overrides = logs_of(Path(runs))
+    return [plot_logs(logs, out_dir, overrides)]
+
+
+def plot_logs(
+    logs: Mapping[str, Path | str], out_dir: Path | str, overrides: tuple[str, ...] = ()
+) -> Path:
+    """Draw Fig. 4 from one environment's MCAP logs by method name; return the PNG's path."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    if runs_or_none:
-        episodes = {name: episode_from_log(path) for name, path in runs_or_none.items()}
-    else:
-        with tempfile.TemporaryDirectory() as tmp:
-            episodes = run_logged(TASK, ENV, available_methods(), Path(tmp), overrides=overrides)
+    episodes = {name: episode_from_log(path) for name, path in logs.items()}
     image, why = render_scene(episodes)
     suffix = "".join(f"_{o.split('=', 1)[1]}" for o in overrides if "=" in o)
-    return [_draw(episodes, image, why, out_dir / f"fig4_task3{suffix.replace('/', '-')}.png")]
+    return _draw(episodes, image, why, out_dir / f"fig4_task3{suffix.replace('/', '-')}.png")
 
 
 def _draw(episodes: dict[str, Episode], image: np.ndarray | None, why: str, path: Path) -> Path:
@@ -360,7 +339,20 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
     return np.flipud(rgb)
 
 
-if __name__ == "__main__":  # python -m analysis.fig4 [OUT_DIR] [overrides, e.g. robot=chain7]
-    given = sys.argv[1:]
-    out = Path(given.pop(0)) if given and "=" not in given[0] else Path(__file__).parent / "out"
-    print(*plot_fig4(out, overrides=tuple(given)))
+def main(argv: list[str] | None = None) -> int:
+    """Command line: ``python -m analysis.fig4 [RUNS] [--out DIR]`` (RUNS: runs/fig4)."""
+    from amex.app.argparsing import OneLineParser
+    from amex.core.errors import AmexError
+    from analysis import print_written
+
+    parser = OneLineParser(prog="python -m analysis.fig4", description=__doc__.splitlines()[0])
+    parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/fig4"))
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "out")
+    args = parser.parse_args(argv)
+    return print_written(
+        "python -m analysis.fig4", lambda: plot_fig4(args.runs, args.out), (AmexError,)
+    )
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

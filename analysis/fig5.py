@@ -1,19 +1,12 @@
 """The paper's Fig. 5 as figures: per task, the distributions behind the table's means.
 
-One row per task, four panels: success at 0.03 m as bars with 95 % Wilson intervals; final time;
-sum of squared accelerations (log scale); compute time per outer step (log scale). Distributions
-are box plots (median, quartiles, whiskers at 1.5 IQR) with every environment as a dot; the
-final-time and smoothness panels join the dots of one environment across methods with a faint
-line (the comparison is paired: every method ran the same environments). A black diamond marks
-the paper's mean (Fig. 5) where it reported that task and method; in the smoothness panel a
-black cross marks the mean of the same episodes as the paper computed them
-(``sum_sq_acc_paper``: joint angles rounded to 6 digits), the figure the diamond is comparable
-to. Methods have the colours of :mod:`amex.core.palette`. Written as ``fig5.png`` and ``fig5.pdf``
-(all tasks) and ``fig5_task<k>`` (one task each).
+One row per task: success at 0.03 m with 95 % Wilson intervals, and box plots of final time,
+sum of squared accelerations and compute time with every environment as a dot, paired across
+methods, the paper's means marked (details: ``docs/analysis.md``). Written as ``fig5.png`` and
+``fig5.pdf`` (all tasks) and ``fig5_task<k>`` (one task each), one set per benchmark
+configuration (``scene_<hash>/`` as ``make table`` does).
 
-Run ``python -m analysis.fig5 [RUNS_DIR] [--out DIR]`` or ``make figures`` (which also draws the
-other figures); several benchmark configurations under RUNS_DIR get a set each, in
-``scene_<hash>/`` as ``make table`` does.
+Run ``python -m analysis.fig5 [RUNS_DIR] [--out DIR]`` or ``make figures``.
 """
 
 from __future__ import annotations
@@ -101,7 +94,7 @@ def _distribution(
 
 
 def _row(axes: Any, sub: pd.DataFrame, paper: pd.DataFrame, task: int) -> None:
-    from analysis.table import method_rank
+    from analysis.comparisons import method_rank
 
     methods = sorted(set(sub.method), key=method_rank)
     for ax, (column, title, scale) in zip(axes, PANELS, strict=True):
@@ -165,7 +158,8 @@ def plot_fig5(episodes: pd.DataFrame, out_dir: Path, title: str = "") -> list[Pa
 
 def plot_runs(runs: Path, out_dir: Path) -> list[Path]:
     """Fig. 5 of every benchmark configuration under ``runs`` (see the module notes)."""
-    from analysis.table import benchmarks, load_runs
+    from analysis.episodes import load_runs
+    from analysis.table import benchmarks
 
     groups = benchmarks(load_runs(runs))
     written = []
@@ -182,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
     from amex.app.argparsing import OneLineParser
     from amex.experiment.store import StoreError
     from analysis import print_written
-    from analysis.table import HERE, TableError
+    from analysis.episodes import TableError
+    from analysis.table import HERE
 
     parser = OneLineParser(prog="make figures", description="Fig. 5 as figures")
     parser.add_argument("runs", nargs="?", default="runs", type=Path)

@@ -1,13 +1,14 @@
-"""``make figures``: every figure into ``analysis/out/``.
+"""``make figures``: every figure into ``analysis/out/``, from runs (none is simulated here).
 
 * Fig. 5 as figures (:mod:`analysis.fig5`) from the runs under ``--runs`` (``RUNS=`` in make,
-  default ``runs/``): per task the distributions of final time, smoothness and compute time per
-  method, success with intervals, the paper's means marked; one set per benchmark configuration;
-* Fig. 2 (the paper's 2-D illustration, drawn from :class:`amex.methods.AMEX` itself),
-* Fig. 4 analogue (one Task-3 environment: reference plan and the methods' paths),
-* Fig. 6 analogue (reference versus executed path with the goal positions as dots),
-* the robustness study's plots and table, redrawn from ``<runs>/robustness`` when its runs exist
-  (``make studies`` runs the studies: ~1.5 h on one core).
+  default ``runs/``), one set per benchmark configuration;
+* Fig. 2 (the paper's 2-D illustration, drawn from :class:`amex.methods.AMEX` itself);
+* Fig. 4 (:mod:`analysis.fig4`) from the logged runs of ``amex-run -m experiment=fig4``
+  (``--fig4``, default ``runs/fig4``) and Fig. 6 (:mod:`analysis.fig6`) from those of
+  ``amex-run experiment=fig6`` (``--fig6``, default ``runs/fig6``): ``make figures`` runs both
+  first;
+* the robustness study's plots and report, redrawn from ``<runs>/robustness`` when its sweep is
+  there (``make studies`` runs it).
 """
 
 from __future__ import annotations
@@ -27,31 +28,36 @@ def main(argv: list[str] | None = None) -> int:
     parser = OneLineParser(prog="make figures", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=HERE / "out")
     parser.add_argument("--runs", type=Path, default=Path("runs"), help="default: runs/")
+    parser.add_argument("--fig4", type=Path, default=Path("runs/fig4"), help="Fig. 4's runs")
+    parser.add_argument("--fig6", type=Path, default=Path("runs/fig6"), help="Fig. 6's run")
     args = parser.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
+    from amex.core.errors import AmexError
     from amex.experiment.store import StoreError
+    from analysis.episodes import TableError
     from analysis.fig2 import plot_fig2
     from analysis.fig4 import plot_fig4
     from analysis.fig5 import plot_runs
-    from analysis.fig6 import plot_fig6
-    from analysis.table import TableError
+    from analysis.fig6 import plot_run
 
     written: list[Path] = []
     try:
         written += plot_runs(args.runs, args.out)
     except (TableError, StoreError) as e:
         print(f"make figures: note: no Fig. 5 ({e})", file=sys.stderr)
-    written += [*plot_fig2(args.out), *plot_fig4(args.out), *plot_fig6(args.out)]
-    runs = args.runs / "robustness"
-    if runs.is_dir():
-        from analysis.robustness import Study, write_outputs
+    written += plot_fig2(args.out)
+    try:
+        written += [*plot_fig4(args.fig4, args.out), *plot_run(args.fig6, args.out)]
+    except AmexError as e:
+        print(f"make figures: error: {e}", file=sys.stderr)
+        return 2
+    if (args.runs / "robustness" / "multirun.yaml").exists():
+        from analysis.robustness import write_outputs
 
-        cells = [p for p in runs.iterdir() if (p / "episodes.csv").exists()]
-        if cells:
-            episodes = max(
-                1, min((p / "episodes.csv").read_text().count("\n") - 1 for p in cells)
-            )
-            written += write_outputs(Study(episodes=episodes), runs, args.out)
+        try:
+            written += write_outputs(args.runs / "robustness", args.out)
+        except AmexError as e:
+            print(f"make figures: note: no robustness plots ({e})", file=sys.stderr)
     for path in written:
         print(path)
     return 0

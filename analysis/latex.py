@@ -2,9 +2,7 @@
 
 Table (a): success at 0.03 m and final time; table (b): sum of squared accelerations and compute
 time per outer step [ms]; each with the paper's values beside ours, mean ± 2 std as in Fig. 5.
-In ``\\footnotesize`` both fit IEEE's 3.5 in column (checked with pdflatex on the paper's own
-numbers: no overfull box); the preamble needs ``\\usepackage{booktabs}`` only. Numbers outside
-[1e-3, 1e4) are written as ``a·10^k`` in math mode.
+Numbers outside [1e-3, 1e4) are written as ``a·10^k`` in math mode (``docs/analysis.md``).
 """
 
 from __future__ import annotations

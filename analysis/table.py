@@ -1,30 +1,9 @@
 """``make table``: the paper's Fig. 5 from our runs, the paper's numbers beside ours, paired stats.
 
-Reads every ``episodes.csv`` under a directory (default ``runs/``) and groups the episodes by
-benchmark configuration (the scene hash: equal hashes mean identical environments for every
-method; a different robot, scale or seed makes another group). For each group it writes into
-``analysis/out/`` (one group) or ``analysis/out/scene_<hash>/`` (several; ``fig5.md`` then lists
-them, with the command-line overrides that set them apart):
-
-* ``fig5.md`` / ``fig5.csv``: per task and method, success (0.03 m), success at 0.05 m,
-  collisions, final time, sum of squared accelerations and compute time as mean ± 2 std, with the
-  paper's Fig. 5 row beside ours;
-* ``fig5.tex``: the same as booktabs tables that fit a paper column (:mod:`analysis.latex`);
-* ``paired.csv`` and a section of ``fig5.md``: paired comparisons of every two methods that ran
-  the same environments (a before b in the order AMEX, DMP, DMP-PS, CR, Track, then others):
-  mean difference with a bootstrap 95 % interval and the Wilcoxon signed-rank p-value;
-* the paper's qualitative claims, each marked holds / fails / n/a in ``fig5.md`` (or "too few"
-  when judged on fewer than :data:`MIN_EPISODES` environments per method), plus one diagnostic:
-  smoothness at equal duration (:func:`duration_invariant_smoothness`).
-
-The shards of a cell (``shards=K shard=I``, :mod:`amex.experiment.shards`) are merged into one row;
-shards
-that overlap or leave environments out are refused with one line naming them.
-
-A (task, method) run with two method configurations in one group (e.g. two values of a method
-parameter) appears as two rows, ``method#<config hash>``. Errors (no runs, a corrupt or
-truncated csv) print one line naming the file and exit with code 2; the outputs are replaced
-only when everything succeeded.
+Reads every ``episodes.csv`` under a directory (default ``runs/``), groups the episodes by
+benchmark configuration (scene hash) and writes per group ``fig5.md``, ``fig5.csv``, ``fig5.tex``
+and ``paired.csv`` into ``analysis/out/`` (one group) or ``analysis/out/scene_<hash>/`` (several,
+listed in ``fig5.md``). What each output holds: ``docs/analysis.md``.
 
 Usage: ``python -m analysis.table [RUNS_DIR] [--out DIR]``.
 """
@@ -41,25 +20,17 @@ from pathlib import Path
 import pandas as pd
 
 from amex.app.argparsing import OneLineParser
-from amex.core.errors import AmexError
-from amex.experiment.shards import ShardError, check_cover, read_spec
-from amex.experiment.store import HASH_COLUMNS, StoreError, parse_result, read_rows
-from analysis.comparisons import (  # noqa: F401 - bootstrap_ci: also analysis.table's API
-    METHOD_ORDER,
-    MIN_EPISODES,
-    bootstrap_ci,
-    claims,
-    method_rank,
-    paired,
-)
+from amex.experiment.store import StoreError
+from analysis.comparisons import METHOD_ORDER, claims, method_rank, paired
+from analysis.episodes import TableError, load_runs
 from analysis.latex import fig5_latex
+from analysis.markdown import markdown_table, paired_markdown
+
+#: Also importable from here, where they lived first (scripts and tests use them).
+__all__ = ["TableError", "aggregate", "benchmarks", "load_runs", "main", "paired", "write_outputs"]
 
 HERE = Path(__file__).resolve().parent
 PAPER_CSV = HERE / "paper_fig5.csv"
-
-
-class TableError(AmexError):
-    """The runs cannot make one table; the message names the file(s)."""
 
 
 @dataclass(frozen=True)
@@ -70,76 +41,6 @@ class Benchmark:
     episodes: pd.DataFrame
     files: tuple[str, ...]
     overrides: tuple[str, ...]  # command-line overrides shared by its runs (task, method aside)
-
-
-def load_runs(root: Path, skip_logged: bool = False) -> pd.DataFrame:
-    """All episodes under ``root`` as one DataFrame (a row per episode), typed.
-
-    ``skip_logged``: leave out runs that logged their episodes (a ``logs/`` directory), e.g. a
-    study's one-episode runs for a figure, which repeat a row of a (maybe sharded) cell.
-    """
-    if not root.is_dir():
-        raise TableError(f"{root}: no such directory (run amex-run first, or RUNS=DIR)")
-    files = sorted(root.rglob("episodes.csv"))
-    if skip_logged:
-        files = [f for f in files if not (f.parent / "logs").is_dir()]
-    if not files:
-        raise TableError(f"no episodes.csv under {root} (run amex-run first, or RUNS=DIR)")
-    frames = []
-    for path in files:
-        rows = read_rows(path)
-        if not rows:
-            continue
-        if "scene_hash" not in rows[0]:
-            raise TableError(f"{path}: written by an older amex without configuration hashes")
-        # typed by the store's own parser, as the resume reads them (read_rows checked every row)
-        typed = [{**parse_result(r).as_row(), **{h: r[h] for h in HASH_COLUMNS}} for r in rows]
-        frame = pd.DataFrame(typed)
-        frame["file"] = str(path)
-        frames.append(frame)
-    if not frames:
-        raise TableError(f"every episodes.csv under {root} is empty")
-    df = pd.concat(frames, ignore_index=True)
-    check_shards(df)
-    # environment order within a cell, whichever shard ran it: means add up in the same order
-    df = df.sort_values("env", kind="stable", ignore_index=True)
-    df = df.drop_duplicates(subset=["scene_hash", "config_hash", "task", "method", "env"])
-    for col in ("task", "env", "seed"):
-        df[col] = df[col].astype(int)
-    for col in ("success", "success_005", "collided"):
-        df[col] = df[col].astype(int).astype(bool)
-    for col in (
-        "final_distance",
-        "final_time",
-        "sum_sq_acc",
-        "sum_sq_acc_paper",
-        "int_sq_acc",
-        "compute_time_median",
-        "compute_time_mean",
-    ):
-        df[col] = df[col].astype(float)
-    df["sum_sq_acc_t3"] = duration_invariant_smoothness(df.sum_sq_acc, df.final_time)
-    return df
-
-
-def check_shards(df: pd.DataFrame) -> None:
-    """Refuse shards of one configuration that overlap or leave gaps
-    (:mod:`amex.experiment.shards`).
-
-    ``df`` holds the rows with their ``file``; the shard of each file is its ``shard.json``.
-    """
-    for (config, task, method), g in df.groupby(["config_hash", "task", "method"], sort=False):
-        files = {}
-        for file, rows in g.groupby("file", sort=True):
-            try:
-                spec = read_spec(Path(str(file)).parent)
-            except ShardError as e:
-                raise TableError(str(e)) from e
-            files[str(Path(str(file)).parent)] = (spec, {int(e) for e in rows.env})
-        try:
-            check_cover(f"task {task} {method} (config {str(config)[:8]})", files)
-        except ShardError as e:
-            raise TableError(str(e)) from e
 
 
 def _overrides(files: list[str]) -> tuple[str, ...]:
@@ -171,19 +72,6 @@ def benchmarks(df: pd.DataFrame) -> list[Benchmark]:
         bench = Benchmark(str(scene), g.reset_index(drop=True), tuple(files), _overrides(files))
         groups.append(bench)
     return sorted(groups, key=lambda b: (-len(b.episodes), b.scene_hash))
-
-
-def duration_invariant_smoothness(sum_sq_acc, final_time):
-    """``sum_sq_acc * final_time**3``: the sum of squared accelerations at equal duration.
-
-    Executing a motion k times slower divides its accelerations by k^2 and multiplies the number
-    of 1 kHz samples by k, so the sum of squared accelerations falls as k^-3 while this product
-    stays the same. It separates "smoother" from "slower": a method whose adaptive phase stretches
-    the motion (AMEX) scores lower on ``sum_sq_acc`` for that reason alone. A diagnostic, not one
-    of the paper's metrics; episodes that stall until ``max_time`` inflate it, so the table reports
-    its median. Units rad^2 s^-1 (no dt factor in ``sum_sq_acc``).
-    """
-    return sum_sq_acc * final_time**3
 
 
 def _mean_2std(values: pd.Series) -> tuple[float, float]:
@@ -270,14 +158,6 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame.from_records(rows)
 
 
-def _markdown(df: pd.DataFrame) -> str:
-    cols = list(df.columns)
-    lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
-    for row in df.itertuples(index=False):
-        lines.append("| " + " | ".join(str(v) for v in row) + " |")
-    return "\n".join(lines)
-
-
 def render_markdown(
     table: pd.DataFrame, pairs: pd.DataFrame, verdicts, source: Path, bench: Benchmark | None = None
 ) -> str:
@@ -289,25 +169,15 @@ def render_markdown(
         title,
         "Mean ± 2 std over the environments of each run; the paper's numbers (Englert & "
         "Toussaint 2014, Fig. 5) beside ours. Success at 0.03 m.\n",
-        _markdown(table),
+        markdown_table(table),
         "\n## Paired comparisons (a − b on identical environments)\n",
     ]
     if len(pairs):
-        shown = pairs.copy()
-        shown["mean_diff"] = shown.mean_diff.map(lambda v: f"{v:.3g}")
-        shown["95% CI"] = [
-            f"[{lo:.3g}, {hi:.3g}]" for lo, hi in zip(pairs.ci_low, pairs.ci_high, strict=False)
-        ]
-        shown["wilcoxon_p"] = shown.wilcoxon_p.map(lambda v: f"{v:.2g}")
-        parts.append(
-            _markdown(
-                shown[["task", "a", "b", "metric", "pairs", "mean_diff", "95% CI", "wilcoxon_p"]]
-            )
-        )
+        parts.append(paired_markdown(pairs))
     else:
         parts.append("(no two methods ran the same environments of a task)")
     parts.append("\n## The paper's claims in our numbers\n")
-    parts.append(_markdown(pd.DataFrame(verdicts, columns=["claim", "verdict", "evidence"])))
+    parts.append(markdown_table(pd.DataFrame(verdicts, columns=["claim", "verdict", "evidence"])))
     return "\n".join(parts) + "\n"
 
 

@@ -126,7 +126,7 @@ def test_each_benchmark_configuration_gets_its_own_table_and_an_index(runs, tmp_
 def test_duration_invariant_smoothness_is_unchanged_by_slowing_a_motion_down():
     import numpy as np
 
-    from analysis.table import duration_invariant_smoothness
+    from analysis.episodes import duration_invariant_smoothness
 
     def executed(duration, dt=1e-3):  # a minimum-jerk reach, sampled at 1 kHz
         t = np.arange(0.0, duration + dt / 2, dt) / duration
