@@ -6,7 +6,8 @@
 
 from typing import Any
 
-__version__ = "0.2.0"
+from amex.core.version import __version__
+
 _API = ("compose", "run_episodes", "run", "read_runs")
 
 

@@ -29,9 +29,9 @@ from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any
 
-import amex
 from amex.core.durable import append_durably, replace_durably
 from amex.core.errors import StoreError
+from amex.core.version import __version__
 from amex.sim.metrics import COLUMNS, REQUIRED_COLUMNS, EpisodeResult
 
 HASH_COLUMNS = ("config_hash", "scene_hash")
@@ -87,7 +87,7 @@ def _without_neutral(spec: dict[str, Any]) -> dict[str, Any]:
 
 
 def _digest(spec: dict[str, Any]) -> str:
-    spec = {**_without_neutral(spec), "amex_version": amex.__version__}
+    spec = {**_without_neutral(spec), "amex_version": __version__}
     return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

@@ -66,8 +66,8 @@ from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneU
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
 from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
 
-import amex
 from amex.core.errors import LogError, LogExistsError, WriteError
+from amex.core.version import __version__
 from amex.log import messages as M
 from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
 
@@ -367,7 +367,7 @@ class EpisodeLogger:
         self._write_metadata(
             "log",
             {
-                "amex_version": amex.__version__,
+                "amex_version": __version__,
                 "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                 "time": "simulation time [s] since the episode start",
                 "world_frame": WORLD_FRAME,

@@ -41,7 +41,7 @@ def test_values_compare_as_yaml_reads_them():
 
 @pytest.mark.parametrize("study", STUDIES)
 def test_the_reports_find_exactly_the_jobs_the_sweeper_launches(study):
-    from amex.app.launch import sweep_settings
+    from amex.app.checks import sweep_settings
     from amex.app.sweeps import sweep_jobs
 
     params, grids, shards, _ = sweep_settings([f"study={study}"], [])

@@ -114,7 +114,7 @@ def test_a_missing_sweep_is_one_line_and_exit_2(tmp_path, capsys):
 
 
 def test_pr2_experiment_composes_like_the_experiment_file():
-    from amex.app.cli import load_config
+    from amex.app.compose import load_config
 
     config = load_config(["experiment=pr2_like", "task=3", "method=dmp"])
     assert config.outer_hz == 20.0
