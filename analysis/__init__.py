@@ -7,6 +7,15 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 
+def default_out() -> Path:
+    """Where tables, figures and reports go unless ``--out`` says so: ``analysis/out`` here.
+
+    Under the current directory (in a checkout: the repository's ``analysis/out``), never in
+    the installed package.
+    """
+    return Path.cwd() / "analysis" / "out"
+
+
 def print_written(
     prog: str, write: Callable[[], Sequence[Path]], errors: tuple[type[Exception], ...]
 ) -> int:

@@ -18,9 +18,11 @@ import pandas as pd
 
 from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
-from analysis.comparisons import claims
-from analysis.episodes import TableError, load_runs
-from analysis.table import HERE, aggregate, benchmarks, paper_table
+
+from . import default_out
+from .comparisons import claims
+from .episodes import TableError, load_runs
+from .table import aggregate, benchmarks, paper_table
 
 DEFAULTS = (("original", Path("runs/paper_original")), ("ours", Path("runs/paper")))
 PAPER_METHODS = ("amex", "dmp", "cr")
@@ -174,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     """Command line (module notes)."""
     parser = OneLineParser(prog="analysis.compare", description=__doc__.splitlines()[0])
     parser.add_argument("benchmarks", nargs="*", metavar="LABEL=DIR")
-    parser.add_argument("--out", default=HERE / "out", type=Path)
+    parser.add_argument("--out", default=default_out(), type=Path)
     parser.add_argument("--name", default="compare.md", help="output file name")
     args = parser.parse_args(argv)
     try:

@@ -15,6 +15,8 @@ import numpy as np
 
 from amex.methods.amex import AMEX
 
+from . import default_out
+
 T_REF = 4.0  # [s]
 DT = 0.01  # [s], Delta s_ref = 0.0025 like the original
 T_MAX = 10.0  # [s], the original's episode limit
@@ -115,5 +117,5 @@ def _draw(plt, Y: np.ndarray, path: Path, label: str) -> Path:
 
 
 if __name__ == "__main__":
-    for p in plot_fig2(Path(__file__).resolve().parent / "out"):
+    for p in plot_fig2(default_out()):
         print(p)

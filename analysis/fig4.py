@@ -29,6 +29,8 @@ from amex.core.palette import (
 )
 from amex.log.plot3d import set_equal_axes_3d
 
+from . import default_out
+
 TASK = 3
 ENV = 0  # the Task-3 environment drawn (a goal the obstacle sits right in front of)
 GOAL_START = {"marker": "o", "facecolor": "white", "edgecolor": GOAL_COLOR, "linewidths": 2.5}
@@ -89,8 +91,8 @@ def logs_of(runs: Path) -> tuple[dict[str, Path], tuple[str, ...]]:
     Raises:
         StudyError: no logged run there.
     """
-    from analysis.comparisons import method_rank
-    from analysis.sweep import StudyError, read_yaml
+    from .comparisons import method_rank
+    from .sweep import StudyError, read_yaml
 
     found: dict[str, Path] = {}
     shared: set[str] | None = None
@@ -343,11 +345,12 @@ def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.fig4 [RUNS] [--out DIR]`` (RUNS: runs/fig4)."""
     from amex.app.argparsing import OneLineParser
     from amex.core.errors import AmexError
-    from analysis import print_written
+
+    from . import print_written
 
     parser = OneLineParser(prog="python -m analysis.fig4", description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/fig4"))
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "out")
+    parser.add_argument("--out", type=Path, default=default_out())
     args = parser.parse_args(argv)
     return print_written(
         "python -m analysis.fig4", lambda: plot_fig4(args.runs, args.out), (AmexError,)

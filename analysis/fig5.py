@@ -20,6 +20,8 @@ import pandas as pd
 
 from amex.core.palette import method_color, method_label
 
+from . import default_out
+
 PANELS = (
     ("success", "success at 0.03 m", None),
     ("final_time", "final time [s]", "linear"),
@@ -94,7 +96,7 @@ def _distribution(
 
 
 def _row(axes: Any, sub: pd.DataFrame, paper: pd.DataFrame, task: int) -> None:
-    from analysis.comparisons import method_rank
+    from .comparisons import method_rank
 
     methods = sorted(set(sub.method), key=method_rank)
     for ax, (column, title, scale) in zip(axes, PANELS, strict=True):
@@ -132,7 +134,7 @@ def plot_fig5(episodes: pd.DataFrame, out_dir: Path, title: str = "") -> list[Pa
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from analysis.table import paper_table
+    from .table import paper_table
 
     paper = paper_table()
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -158,8 +160,8 @@ def plot_fig5(episodes: pd.DataFrame, out_dir: Path, title: str = "") -> list[Pa
 
 def plot_runs(runs: Path, out_dir: Path) -> list[Path]:
     """Fig. 5 of every benchmark configuration under ``runs`` (see the module notes)."""
-    from analysis.episodes import load_runs
-    from analysis.table import benchmarks
+    from .episodes import load_runs
+    from .table import benchmarks
 
     groups = benchmarks(load_runs(runs))
     written = []
@@ -175,13 +177,13 @@ def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.fig5 [RUNS] [--out DIR]``."""
     from amex.app.argparsing import OneLineParser
     from amex.experiment.store import StoreError
-    from analysis import print_written
-    from analysis.episodes import TableError
-    from analysis.table import HERE
+
+    from . import print_written
+    from .episodes import TableError
 
     parser = OneLineParser(prog="make figures", description="Fig. 5 as figures")
     parser.add_argument("runs", nargs="?", default="runs", type=Path)
-    parser.add_argument("--out", default=HERE / "out", type=Path)
+    parser.add_argument("--out", default=default_out(), type=Path)
     args = parser.parse_args(argv)
     return print_written(
         "make figures", lambda: plot_runs(args.runs, args.out), (TableError, StoreError)

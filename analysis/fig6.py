@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from . import default_out
+
 COLORS = ("tab:blue", "tab:purple", "tab:orange")
 DOT_EVERY = 0.05  # [s] at least between two drawn goal positions
 
@@ -163,8 +165,8 @@ def plot_fig6(traces: Sequence[Trace], path: Path, title: str) -> Path:
 
 def farthest_goal(run_dir: Path) -> Path:
     """The log in ``run_dir/logs`` of the environment whose goal moves farthest."""
-    from analysis.model import robot_of, scenario_of
-    from analysis.sweep import StudyError, read_yaml
+    from .model import robot_of, scenario_of
+    from .sweep import StudyError, read_yaml
 
     logs = sorted((run_dir / "logs").glob("episode_*.mcap"))
     if not logs:
@@ -192,11 +194,12 @@ def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     from amex.app.argparsing import OneLineParser
     from amex.core.errors import AmexError
-    from analysis import print_written
+
+    from . import print_written
 
     parser = OneLineParser(prog="python -m analysis.fig6", description=__doc__.splitlines()[0])
     parser.add_argument("run", nargs="?", type=Path, default=Path("runs/fig6"))
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "out")
+    parser.add_argument("--out", type=Path, default=default_out())
     args = parser.parse_args(argv)
     return print_written(
         "python -m analysis.fig6", lambda: plot_run(args.run, args.out), (AmexError,)

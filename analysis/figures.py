@@ -19,14 +19,14 @@ from pathlib import Path
 
 from amex.app.argparsing import OneLineParser
 
-HERE = Path(__file__).resolve().parent
+from . import default_out
 
 
 def main(argv: list[str] | None = None) -> int:
     """Draw the figures; print the files written."""
     os.environ.setdefault("MPLBACKEND", "Agg")
     parser = OneLineParser(prog="make figures", description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=HERE / "out")
+    parser.add_argument("--out", type=Path, default=default_out())
     parser.add_argument("--runs", type=Path, default=Path("runs"), help="default: runs/")
     parser.add_argument("--fig4", type=Path, default=Path("runs/fig4"), help="Fig. 4's runs")
     parser.add_argument("--fig6", type=Path, default=Path("runs/fig6"), help="Fig. 6's run")
@@ -34,11 +34,12 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     from amex.core.errors import AmexError
     from amex.experiment.store import StoreError
-    from analysis.episodes import TableError
-    from analysis.fig2 import plot_fig2
-    from analysis.fig4 import plot_fig4
-    from analysis.fig5 import plot_runs
-    from analysis.fig6 import plot_run
+
+    from .episodes import TableError
+    from .fig2 import plot_fig2
+    from .fig4 import plot_fig4
+    from .fig5 import plot_runs
+    from .fig6 import plot_run
 
     written: list[Path] = []
     try:
@@ -52,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"make figures: error: {e}", file=sys.stderr)
         return 2
     if (args.runs / "robustness" / "multirun.yaml").exists():
-        from analysis.robustness import write_outputs
+        from .robustness import write_outputs
 
         try:
             written += write_outputs(args.runs / "robustness", args.out)

@@ -20,7 +20,8 @@ from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotConfig, RobotModel, load_robot
 from amex.robot.ik import solve_ik
 from amex.sim.scenario import Scenario, ScenarioConfig, make_scenario, plan_goal
-from analysis.sweep import StudyError
+
+from .sweep import StudyError
 
 
 def typed(cls: type, data: Mapping[str, Any]) -> Any:

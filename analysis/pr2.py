@@ -17,12 +17,12 @@ import os
 from pathlib import Path
 
 from amex.app.argparsing import OneLineParser
-from analysis.fig6 import plot_fig6, trace_of
-from analysis.pr2_report import render
-from analysis.pr2_study import PR2Study, read_study
-from analysis.sweep import StudyError
 
-HERE = Path(__file__).resolve().parent
+from . import default_out
+from .fig6 import plot_fig6, trace_of
+from .pr2_report import render
+from .pr2_study import PR2Study, read_study
+from .sweep import StudyError
 
 
 def fig6_title(study: PR2Study) -> str:
@@ -67,11 +67,12 @@ def write_outputs(runs: Path, out_dir: Path) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     from amex.core.errors import AmexError
-    from analysis import print_written
+
+    from . import print_written
 
     parser = OneLineParser(prog="python -m analysis.pr2", description=__doc__)
     parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/pr2_like"))
-    parser.add_argument("--out", type=Path, default=HERE / "out")
+    parser.add_argument("--out", type=Path, default=default_out())
     args = parser.parse_args(argv)
     return print_written(
         "python -m analysis.pr2", lambda: write_outputs(args.runs, args.out), (AmexError,)

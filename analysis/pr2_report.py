@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pandas as pd
 
-from analysis.comparisons import paired, paired_stats
-from analysis.markdown import markdown_table, paired_markdown
-from analysis.pr2_study import PR2Study, disturbance
-from analysis.table import aggregate, combined, paper_table
+from .comparisons import paired, paired_stats
+from .markdown import markdown_table, paired_markdown
+from .pr2_study import PR2Study, disturbance
+from .table import aggregate, combined, paper_table
 
 PR2_METHODS = ("amex", "dmp", "cr")  # the table's method order
 TABLE_COLUMNS = (

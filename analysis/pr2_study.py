@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from analysis.comparisons import paired_stats
-from analysis.sweep import Cell, StudyError, Sweep, read_sweep
+from .comparisons import paired_stats
+from .sweep import Cell, StudyError, Sweep, read_sweep
 
 STUDY = "pr2_like"
 #: The stall table's rows of the table grids, by disturbance compensation.
@@ -185,7 +185,7 @@ def disturbance(cell: Cell) -> Disturbance:
     """:class:`Disturbance` of the cell's robot and mismatch (rigid-body terms from Pinocchio)."""
     import pinocchio as pin
 
-    from analysis.model import reference_of, robot_of
+    from .model import reference_of, robot_of
 
     robot = robot_of(cell.config)
     model = robot.model

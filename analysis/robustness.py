@@ -15,11 +15,11 @@ import os
 from pathlib import Path
 
 from amex.app.argparsing import OneLineParser
-from analysis.robustness_plot import plot_sweep
-from analysis.robustness_report import render
-from analysis.robustness_study import aggregate, comparisons, read_study
 
-HERE = Path(__file__).resolve().parent
+from . import default_out
+from .robustness_plot import plot_sweep
+from .robustness_report import render
+from .robustness_study import aggregate, comparisons, read_study
 
 
 def write_outputs(runs: Path, out_dir: Path, quick: bool = False) -> list[Path]:
@@ -46,12 +46,13 @@ def write_outputs(runs: Path, out_dir: Path, quick: bool = False) -> list[Path]:
 def main(argv: list[str] | None = None) -> int:
     """Command line (see the module docstring)."""
     from amex.core.errors import AmexError
-    from analysis import print_written
+
+    from . import print_written
 
     parser = OneLineParser(prog="python -m analysis.robustness", description=__doc__)
     parser.add_argument("runs", nargs="?", type=Path, default=Path("runs/robustness"))
     parser.add_argument("--quick", action="store_true", help="title the report a smoke run")
-    parser.add_argument("--out", type=Path, default=HERE / "out")
+    parser.add_argument("--out", type=Path, default=default_out())
     args = parser.parse_args(argv)
     return print_written(
         "python -m analysis.robustness",

@@ -8,7 +8,8 @@ import numpy as np
 import pandas as pd
 
 from amex.core.palette import method_color, method_label
-from analysis.robustness_study import Study
+
+from .robustness_study import Study
 
 #: Panels: (mean column, interval low, interval high); no interval for the smoothness.
 PANELS = (

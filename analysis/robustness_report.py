@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pandas as pd
 
-from analysis.markdown import markdown_table
-from analysis.model import reach_errors
-from analysis.robustness_study import Study
+from .markdown import markdown_table
+from .model import reach_errors
+from .robustness_study import Study
 
 
 def _fmt_rate(row: pd.Series) -> str:

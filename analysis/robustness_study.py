@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from analysis.comparisons import bootstrap_ci, paired_stats
-from analysis.sweep import StudyError, Sweep, read_sweep
+from .comparisons import bootstrap_ci, paired_stats
+from .sweep import StudyError, Sweep, read_sweep
 
 STUDY = "robustness"
 TUNING = "tuning"  # the grids named tuning_*: AMEX's prediction variants on the fast goal

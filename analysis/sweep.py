@@ -20,8 +20,9 @@ import pandas as pd
 import yaml
 
 from amex.core.errors import AmexError
-from analysis.episodes import read_episodes
-from analysis.overrides import from_mapping, job_of, normalized, product
+
+from .episodes import read_episodes
+from .overrides import from_mapping, job_of, normalized, product
 
 #: Overrides that say which environments a job runs, not what its cell is.
 SHARD_KEYS = ("shard",)

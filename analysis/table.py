@@ -21,10 +21,12 @@ import pandas as pd
 
 from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
-from analysis.comparisons import METHOD_ORDER, claims, method_rank, paired
-from analysis.episodes import TableError, load_runs
-from analysis.latex import fig5_latex
-from analysis.markdown import markdown_table, paired_markdown
+
+from . import default_out
+from .comparisons import METHOD_ORDER, claims, method_rank, paired
+from .episodes import TableError, load_runs
+from .latex import fig5_latex
+from .markdown import markdown_table, paired_markdown
 
 #: Also importable from here, where they lived first (scripts and tests use them).
 __all__ = ["TableError", "aggregate", "benchmarks", "load_runs", "main", "paired", "write_outputs"]
@@ -253,7 +255,7 @@ def main(argv: list[str] | None = None) -> int:
     """Command line: ``python -m analysis.table [RUNS] [--out DIR]``."""
     parser = OneLineParser(prog="make table", description="Fig. 5 from episodes.csv files")
     parser.add_argument("runs", nargs="?", default="runs", type=Path)
-    parser.add_argument("--out", default=HERE / "out", type=Path)
+    parser.add_argument("--out", default=default_out(), type=Path)
     args = parser.parse_args(argv)
     try:
         written = write_outputs(args.runs, args.out)

@@ -30,6 +30,7 @@ def test_every_package_and_config_directory_is_in_the_wheel():
     missing = (code | configs | {p for p in plugins if p != "hydra_plugins"}) - listed
     assert sorted(missing) == []
     assert mapped["amex.conf"] == "conf"
+    assert mapped["amex_analysis"] == "analysis" and "analysis" not in listed  # no generic name
 
 
 def test_the_packaged_configs_are_the_ones_amex_run_composes():
