@@ -1,6 +1,7 @@
 """``make table`` on real runs: the report, and clear errors that overwrite nothing."""
 
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -69,14 +70,17 @@ def test_table_runs_from_any_directory(runs, tmp_path):
     import subprocess
     import sys
 
+    analysis = str(Path(sys.executable).parent / "amex-analysis")  # as installed
     proc = subprocess.run(
-        [sys.executable, "-m", "analysis.table", str(runs), "--out", str(tmp_path / "out")],
+        [analysis, "table", str(runs), "--out", str(tmp_path / "out")],
         cwd=tmp_path,
         capture_output=True,
         text=True,
     )
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "out" / "fig5.md").exists()
+    proc = subprocess.run([analysis, "table", str(runs)], cwd=tmp_path, capture_output=True)
+    assert proc.returncode == 0 and (tmp_path / "analysis" / "out" / "fig5.md").exists()
 
 
 def _bad_input(tmp_path, capsys, root):
