@@ -114,12 +114,13 @@ class _Text:
 class _File:
     """A file opened per request, never through a symbolic link, if it is a regular file.
 
-    ``identity`` (device, inode) at the start, if given, must still be the file's.
+    ``identity`` (device, inode, size, modification time) at the start, if given, must still be
+    the file's: a file replaced or rewritten since is not served.
     """
 
     path: Path
     max_bytes: int  # [bytes]
-    identity: tuple[int, int] | None = None
+    identity: tuple[int, ...] | None = None
 
     @contextmanager
     def opened(self) -> Iterator[_Opened]:
@@ -129,13 +130,17 @@ class _File:
             raise _Refused(HTTPStatus.NOT_FOUND, f"{self.path.name}: no longer there") from None
         try:
             info = os.fstat(fd)
-            same = self.identity in (None, (info.st_dev, info.st_ino))
+            same = self.identity in (None, _identity(info))
             if not (stat.S_ISREG(info.st_mode) and same and info.st_size <= self.max_bytes):
                 raise _Refused(HTTPStatus.GONE, f"{self.path.name}: changed since the start")
             ctype = mimetypes.guess_type(self.path.name)[0] or "application/octet-stream"
             yield _Opened(info.st_size, ctype, lambda offset, n: os.pread(fd, n, offset))
         finally:
             os.close(fd)
+
+
+def _identity(info: os.stat_result) -> tuple[int, ...]:
+    return info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns
 
 
 class _Snapshot:
@@ -410,7 +415,7 @@ class _Server(ThreadingHTTPServer):
     """Threads, at most ``max_connections`` of them; more connections are answered 503."""
 
     daemon_threads = True
-    request_queue_size = 64
+    request_queue_size = 1024  # listen backlog: a burst waits here for its answer (or 503)
     site: Site
     policy: _Policy
 
@@ -525,10 +530,8 @@ class LogServer:
             )
             site.resources["/robot/robot.urdf"] = _Text(self.urdf.text.encode(), "application/xml")
             for name, path in self.urdf.files.items():
-                info = path.stat()
-                site.resources[f"/robot/{name}"] = _File(
-                    path, MAX_MESH_BYTES, (info.st_dev, info.st_ino)
-                )
+                identity = _identity(path.stat())
+                site.resources[f"/robot/{name}"] = _File(path, MAX_MESH_BYTES, identity)
             urdf_url = f"{base}/robot/robot.urdf"
         layout = build_layout(data, urdf_url=urdf_url)
         site.resources["/favicon.ico"] = _Text(b"", "image/x-icon")
@@ -561,7 +564,9 @@ class LogServer:
         self._server.site = site
 
     def start(self) -> LogServer:
-        """Serve in a background thread; return self."""
+        """Serve in a background thread (once); return self."""
+        if self._thread is not None:
+            return self
         self._thread = threading.Thread(
             target=self._server.serve_forever, name="amex-log-view", daemon=True
         )
