@@ -310,7 +310,7 @@ def server(episode, tmp_path, home, package):
 
 
 def _paths(server):
-    return ["/", "/view.mcap", "/robot/robot.urdf", "/robot/meshes/0/base.stl", "/layout.json"]
+    return ["/view.mcap", "/robot/robot.urdf", "/robot/meshes/0/base.stl", "/layout.json", "/"]
 
 
 def test_page_of_another_origin_gets_403_and_no_cors_headers(server):
