@@ -281,8 +281,11 @@ class _Handler(BaseHTTPRequestHandler):
     server: _Server
     protocol_version = "HTTP/1.1"
     server_version = "amex-log-view"
-    sys_version = ""
     _cors: str | None = None  # the request's allowed Origin, if any
+
+    def version_string(self) -> str:
+        """``Server:`` names no Python version."""
+        return self.server_version
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib's name
         """Quiet: a viewer asks for hundreds of ranges."""
