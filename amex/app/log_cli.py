@@ -70,7 +70,15 @@ def _parser() -> _Parser:
     )
     p.add_argument("file", type=Path, metavar="FILE")
     p.add_argument("--port", type=int, default=DEFAULT_PORT, help="0: any free port")
-    p.add_argument("--host", default="127.0.0.1", help="interface to listen on")
+    p.add_argument(
+        "--host", default="127.0.0.1", help="loopback address to listen on (127.0.0.1, ::1)"
+    )
+    p.add_argument(
+        "--expose-on-network",
+        action="store_true",
+        help="allow a --host that is not loopback (e.g. 0.0.0.0): everyone who can reach this "
+        "machine on --port can then read the log, its robot description and meshes",
+    )
     p.add_argument("--studio", type=Path, metavar="DIR", help="a Foxglove Studio web build")
     p = sub.add_parser(
         "video", help="film an episode (MuJoCo render, MP4); 2-3 logs of one env side by side"
@@ -263,22 +271,48 @@ def layout(args: argparse.Namespace) -> None:
 
 
 def view(args: argparse.Namespace) -> None:
-    """Serve the log, its robot and layout; print the URLs; serve until Ctrl-C."""
-    from amex.log.serve import LogServer
+    """Serve the log, its robot and layout; print the URLs; serve until Ctrl-C.
 
-    data = read_log(args.file)
+    Only to this machine unless ``--expose-on-network`` (``docs/viewers-security.md``).
+    """
+    from amex.log.serve import LogServer, is_loopback
+
     if not 0 <= args.port <= 65535:
         raise LogError(f"invalid --port {args.port}; valid: 0-65535 (0: any free port)")
+    if not (args.expose_on_network or is_loopback(args.host)):
+        raise LogError(
+            f"--host {args.host} is not a loopback address: everyone who can reach it could read "
+            "the log, its robot description and meshes; add --expose-on-network to allow that, "
+            "or use --host 127.0.0.1"
+        )
+    data = read_log(args.file)
     try:
-        server = LogServer(data, host=args.host, port=args.port, studio_dir=args.studio)
+        server = LogServer(
+            data,
+            host=args.host,
+            port=args.port,
+            studio_dir=args.studio,
+            expose_on_network=args.expose_on_network,
+        )
     except OSError as e:
         raise LogError(
             f"cannot listen on {args.host}:{args.port} ({e.strerror}); try --port 0"
         ) from e
     urls = server.urls
+    if args.expose_on_network and not is_loopback(args.host):
+        sys.stderr.write(
+            f"{PROG}: warning: listening on {args.host} port {server.port}: everyone who can "
+            "reach it can read the log, its robot description and meshes\n"
+        )
+    if server.urdf is not None and server.urdf.refused:
+        refused = server.urdf.refused
+        more = f" (and {len(refused) - 1} more)" if len(refused) > 1 else ""
+        sys.stderr.write(
+            f"{PROG}: note: {len(refused)} mesh reference(s) of the robot description not "
+            f"served, drawn as collision shapes: {refused[0]}{more}\n"
+        )
     out = sys.stdout
-    out.write(f"serving {data.path} ({data.size / 1e3:.0f} kB) on http://{args.host}:"
-              f"{server.port}/ (Ctrl-C stops)\n")  # fmt: skip
+    out.write(f"serving {data.path} ({data.size / 1e3:.0f} kB) on {urls.index} (Ctrl-C stops)\n")
     out.write(f"  Foxglove web app:  {urls.foxglove}\n")
     out.write(f"  its layout:        {urls.layout}  (save it, then Layouts > Import from file)\n")
     if urls.studio:

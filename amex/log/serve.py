@@ -1,11 +1,11 @@
 """``amex-log view``: serve a log, its robot and a layout to Foxglove in a browser.
 
-A small HTTP server on the loopback interface (standard library only) that answers what a web
-viewer asks for: byte ranges (Foxglove reads an MCAP file's index, then the chunks it needs),
-CORS headers on every answer and on preflights (``Access-Control-Allow-Private-Network`` too, so
-that the https web app may read from the local machine). It serves
+A small HTTP server (standard library only) that answers what a web viewer asks for: byte ranges
+(Foxglove reads an MCAP file's index, then the chunks it needs) and CORS headers for Foxglove's web
+app. It serves
 
 ========================= ===========================================================
+``/``                     an index page with the links below
 ``/<log name>.mcap``      the log
 ``/robot/robot.urdf``     the log's robot, meshes rewritten to URLs (:mod:`amex.log.urdf`)
 ``/robot/meshes/...``     the meshes it uses
@@ -13,75 +13,340 @@ that the https web app may read from the local machine). It serves
 ``/studio/...``           a local Foxglove Studio web build, if one is installed (``tests/viewer/``)
 ========================= ===========================================================
 
-and :func:`viewer_urls` gives the links that open them: Foxglove's web app with the log as a
+and :attr:`LogServer.urls` gives the links that open them: Foxglove's web app with the log as a
 remote file, and the local Studio with the log and the layout preselected.
+
+Nothing else, and only to whom needs it (``docs/viewers-security.md`` says why):
+
+- The log is the file opened at the start: deleted later, it is served as it was; changed in
+  place, it is answered with 410 Gone. A mesh is opened per request without following a symbolic
+  link and served only while it is the regular file :mod:`amex.log.urdf` let through; the Studio
+  build only its page, its script and the bundles it loads.
+- The server listens on a loopback address unless ``expose_on_network``. A request whose ``Host``
+  is not this server's name and port is refused with 421 (DNS rebinding); a page of an origin
+  other than Foxglove's web app (:data:`FOXGLOVE_ORIGIN`) and this server gets 403 and no CORS
+  headers, as does a cross-site request without an origin (``Sec-Fetch-Site``, e.g. an
+  ``<img>``); only the allowed origins get the private-network preflight.
+- Bounded: at most :data:`MAX_CONNECTIONS` connections at once (more are answered 503),
+  :data:`IDLE_TIMEOUT` to send a request, :data:`SEND_TIMEOUT` for a stalled reader, one range
+  ``bytes=a-b`` of at most 18 digits each (else 416).
 """
 
 from __future__ import annotations
 
+import html
+import ipaddress
 import json
 import mimetypes
+import os
 import re
+import socket
+import stat
 import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 from urllib.parse import quote, unquote, urlencode, urlsplit
 
+from amex.core.errors import LogError
 from amex.log.layout import build_layout
 from amex.log.reader import LogData
-from amex.log.urdf import viewer_urdf
+from amex.log.urdf import MAX_MESH_BYTES, ViewerUrdf, viewer_urdf
 
-FOXGLOVE_APP = "https://app.foxglove.dev/"
+FOXGLOVE_ORIGIN = "https://app.foxglove.dev"
+FOXGLOVE_APP = FOXGLOVE_ORIGIN + "/"
 DEFAULT_PORT = 8765
+MAX_CONNECTIONS = 32  # at once; a browser opens at most 6 per server
+IDLE_TIMEOUT = 5.0  # [s] for a request to arrive, on a new or a kept-alive connection
+SEND_TIMEOUT = 60.0  # [s] for a stalled reader to take the next piece of an answer
+MAX_STUDIO_FILE_BYTES = 256 << 20  # [bytes]
 # make test-viewer installs it
 STUDIO_DIR = Path(__file__).resolve().parents[2] / "tests" / "viewer"
-_RANGE = re.compile(r"bytes=(\d*)-(\d*)$")
+STUDIO_FILES = (
+    "index.html",
+    "main.js",
+    "node_modules/react/umd/react.production.min.js",
+    "node_modules/react-dom/umd/react-dom.production.min.js",
+)
+STUDIO_TREES = ("node_modules/@foxglove/studio-base/assets/",)
+_RANGE = re.compile(r"bytes=(\d{0,18})-(\d{0,18})")
+_TOKENS = re.compile(r"[A-Za-z0-9!#$%&'*+.^_`|~-]+(\s*,\s*[A-Za-z0-9!#$%&'*+.^_`|~-]+)*")
+_OPEN_FLAGS = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+_BUSY = (
+    b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: 20\r\n"
+    b"Retry-After: 1\r\nConnection: close\r\n\r\ntoo many connections"
+)
+
+
+class _Refused(Exception):
+    """A request answered with an error status instead."""
+
+    def __init__(self, status: HTTPStatus, text: str, size: int | None = None) -> None:
+        super().__init__(text)
+        self.status, self.text, self.size = status, text, size
+
+
+class _Opened(NamedTuple):
+    size: int  # [bytes]
+    ctype: str  # its media type
+    read: Callable[[int, int], bytes]  # (offset, count) -> at most count bytes
+
+
+@dataclass(frozen=True)
+class _Text:
+    """A generated answer (the URDF, the layout, the index)."""
+
+    content: bytes
+    ctype: str
+
+    @contextmanager
+    def opened(self) -> Iterator[_Opened]:
+        yield _Opened(
+            len(self.content), self.ctype, lambda offset, n: self.content[offset : offset + n]
+        )
+
+
+@dataclass(frozen=True)
+class _File:
+    """A file opened per request, never through a symbolic link, if it is a regular file.
+
+    ``identity`` (device, inode, size, modification time) at the start, if given, must still be
+    the file's: a file replaced or rewritten since is not served.
+    """
+
+    path: Path
+    max_bytes: int  # [bytes]
+    identity: tuple[int, ...] | None = None
+
+    @contextmanager
+    def opened(self) -> Iterator[_Opened]:
+        try:
+            fd = os.open(self.path, _OPEN_FLAGS)
+        except OSError:
+            raise _Refused(HTTPStatus.NOT_FOUND, f"{self.path.name}: no longer there") from None
+        try:
+            info = os.fstat(fd)
+            same = self.identity in (None, _identity(info))
+            if not (stat.S_ISREG(info.st_mode) and same and info.st_size <= self.max_bytes):
+                raise _Refused(HTTPStatus.GONE, f"{self.path.name}: changed since the start")
+            ctype = mimetypes.guess_type(self.path.name)[0] or "application/octet-stream"
+            yield _Opened(info.st_size, ctype, lambda offset, n: os.pread(fd, n, offset))
+        finally:
+            os.close(fd)
+
+
+def _identity(info: os.stat_result) -> tuple[int, ...]:
+    return info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns
+
+
+class _Snapshot:
+    """The log, opened once: served as it was while unchanged (deleted too), else 410."""
+
+    def __init__(self, path: Path) -> None:
+        self.fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+        info = os.fstat(self.fd)
+        if not stat.S_ISREG(info.st_mode):
+            os.close(self.fd)
+            raise LogError(f"{path} is not a regular file; amex-log view serves log files")
+        self.size, self.mtime_ns = info.st_size, info.st_mtime_ns
+
+    @contextmanager
+    def opened(self) -> Iterator[_Opened]:
+        info = os.fstat(self.fd)
+        if (info.st_size, info.st_mtime_ns) != (self.size, self.mtime_ns):
+            raise _Refused(
+                HTTPStatus.GONE, "the log changed since amex-log view started; restart it"
+            )
+        yield _Opened(
+            self.size, "application/octet-stream", lambda offset, n: os.pread(self.fd, n, offset)
+        )
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+_Resource = _Text | _File | _Snapshot
 
 
 @dataclass
 class Site:
-    """What the server answers: files by URL path, and generated texts by URL path."""
+    """What the server answers, by URL path: generated texts, files, and a Studio build."""
 
-    files: dict[str, Path] = field(default_factory=dict)
-    texts: dict[str, tuple[bytes, str]] = field(default_factory=dict)
-    static_dirs: dict[str, Path] = field(default_factory=dict)
+    resources: dict[str, _Resource] = field(default_factory=dict)
+    studio: Path | None = None  # resolved
 
-    def find(self, path: str) -> Path | tuple[bytes, str] | None:
-        """The file or (content, type) at URL ``path``; None if there is none."""
-        if path in self.texts:
-            return self.texts[path]
-        if path in self.files:
-            return self.files[path]
-        for prefix, root in self.static_dirs.items():
-            if path.startswith(prefix):
-                target = (root / path[len(prefix) :]).resolve()
-                if target.is_relative_to(root.resolve()) and target.is_file():
-                    return target
+    def find(self, path: str) -> _Resource | None:
+        """The resource at URL ``path``; None if there is none."""
+        if path in self.resources:
+            return self.resources[path]
+        if self.studio is None or not path.startswith("/studio/"):
+            return None
+        relative = path[len("/studio/") :]
+        if any(part in ("", ".", "..") for part in relative.split("/")):
+            return None
+        if relative not in STUDIO_FILES and not relative.startswith(STUDIO_TREES):
+            return None
+        target = (self.studio / relative).resolve()
+        if not (target.is_relative_to(self.studio) and target.is_file()):
+            return None
+        return _File(target, MAX_STUDIO_FILE_BYTES)
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` (a name or an address) is this machine's loopback interface only."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host.strip("[]")).is_loopback
+    except ValueError:
+        return False
+
+
+def _split_host(value: str) -> tuple[str, int] | None:
+    """``(host, port)`` of a ``Host`` header value (port 80 if none); None if malformed."""
+    value = value.strip().lower()
+    if value.startswith("["):
+        host, bracket, rest = value.partition("]")
+        host += bracket
+    else:
+        host, _, port = value.partition(":")
+        rest = ":" + port if port or value.endswith(":") else ""
+    if not rest:
+        return (host, 80) if host else None
+    if not (rest.startswith(":") and rest[1:].isdigit() and len(rest) <= 6):
         return None
+    return host, int(rest[1:])
+
+
+@dataclass(frozen=True)
+class _Policy:
+    """Which ``Host`` names and which browser origins this server answers."""
+
+    port: int
+    names: frozenset[str]  # lower case, IPv6 addresses in brackets
+    any_address: bool = False  # exposed on the network: an IP address names this host too
+
+    def host_ok(self, value: str) -> bool:
+        split = _split_host(value)
+        if split is None or split[1] != self.port:
+            return False
+        if split[0] in self.names:
+            return True
+        return self.any_address and split[0] != "" and _is_address(split[0])
+
+    def origin_ok(self, origin: str) -> bool:
+        if origin == FOXGLOVE_ORIGIN:
+            return True
+        return origin.startswith("http://") and "/" not in origin[7:] and self.host_ok(origin[7:])
+
+
+def _is_address(host: str) -> bool:
+    try:
+        ipaddress.ip_address(host.strip("[]"))
+    except ValueError:
+        return False
+    return True
+
+
+def _byte_range(header: str, size: int) -> tuple[int, int]:
+    """``(first, last)`` byte of a ``Range`` header (one range) of a ``size``-byte answer.
+
+    Raises:
+        _Refused: 416 for a malformed, multiple, absurd or unsatisfiable range.
+    """
+    m = _RANGE.fullmatch(header.strip())
+    if m is None or not (m.group(1) or m.group(2)):
+        raise _Refused(
+            HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE,
+            "Range: only one range bytes=FIRST-[LAST] or bytes=-SUFFIX, at most 18 digits each",
+            size,
+        )
+    if m.group(1):
+        start = int(m.group(1))
+        end = min(int(m.group(2)), size - 1) if m.group(2) else size - 1
+    else:  # the last n bytes
+        start, end = max(size - int(m.group(2)), 0), size - 1
+        if int(m.group(2)) == 0:
+            start = size
+    if start >= size or start > end:
+        raise _Refused(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE, "range outside", size)
+    return start, end
 
 
 class _Handler(BaseHTTPRequestHandler):
     server: _Server
     protocol_version = "HTTP/1.1"
+    server_version = "amex-log-view"
+    _cors: str | None = None  # the request's allowed Origin, if any
+
+    def version_string(self) -> str:
+        """``Server:`` names no Python version."""
+        return self.server_version
 
     def log_message(self, format: str, *args: Any) -> None:  # noqa: A002 - stdlib's name
         """Quiet: a viewer asks for hundreds of ranges."""
 
+    def handle_one_request(self) -> None:
+        self._cors = None
+        self.connection.settimeout(self.server.idle_timeout)
+        super().handle_one_request()
+
     def end_headers(self) -> None:
-        self.send_header("Access-Control-Allow-Origin", "*")
-        self.send_header("Access-Control-Expose-Headers", "Content-Length, Content-Range")
+        if self._cors is not None:
+            self.send_header("Access-Control-Allow-Origin", self._cors)
+            self.send_header("Access-Control-Expose-Headers", "Content-Length, Content-Range")
+        self.send_header("Vary", "Origin")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Cross-Origin-Resource-Policy", "same-origin")
+        self.send_header("Cache-Control", "no-store")
         super().end_headers()
 
+    def _refused(self) -> bool:
+        """Answer and return True if this request must not be served (module notes)."""
+        headers = self.headers
+        if headers.get("Transfer-Encoding") or headers.get("Content-Length", "0") != "0":
+            self.close_connection = True  # a body we do not read: no next request after it
+        if not (self.path.startswith("/") or (self.command == "OPTIONS" and self.path == "*")):
+            self._error(HTTPStatus.BAD_REQUEST, "only paths are served (origin-form targets)")
+            return True
+        hosts = headers.get_all("Host") or []
+        if len(hosts) != 1 or not self.server.policy.host_ok(hosts[0]):
+            self._error(
+                HTTPStatus.MISDIRECTED_REQUEST,
+                f"Host {', '.join(hosts) or '(none)'} is not this server; use the printed URLs",
+            )
+            return True
+        origin = headers.get("Origin")
+        if origin is not None:
+            if not self.server.policy.origin_ok(origin):
+                self._error(HTTPStatus.FORBIDDEN, f"origin {origin} may not read this server")
+                return True
+            self._cors = origin
+        elif headers.get("Sec-Fetch-Site") in ("cross-site", "same-site") and (
+            headers.get("Sec-Fetch-Mode") != "navigate"
+        ):
+            self._error(HTTPStatus.FORBIDDEN, "a cross-site request without an allowed origin")
+            return True
+        return False
+
     def do_OPTIONS(self) -> None:  # noqa: N802 - http.server's naming
-        """CORS preflight, including Chrome's private-network access check."""
+        """CORS preflight of an allowed origin, including Chrome's private-network check."""
+        if self._refused():
+            return
         self.send_response(HTTPStatus.NO_CONTENT)
-        self.send_header("Access-Control-Allow-Methods", "GET, HEAD, OPTIONS")
-        self.send_header("Access-Control-Allow-Headers", "*")
-        self.send_header("Access-Control-Allow-Private-Network", "true")
-        self.send_header("Access-Control-Max-Age", "600")
+        self.send_header("Allow", "GET, HEAD, OPTIONS")
+        if self._cors is not None:
+            self.send_header("Access-Control-Allow-Methods", "GET, HEAD")
+            asked = self.headers.get("Access-Control-Request-Headers", "")
+            if _TOKENS.fullmatch(asked):
+                self.send_header("Access-Control-Allow-Headers", asked)
+            if self.headers.get("Access-Control-Request-Private-Network") == "true":
+                self.send_header("Access-Control-Allow-Private-Network", "true")
+            self.send_header("Access-Control-Max-Age", "600")
         self.send_header("Content-Length", "0")
         self.end_headers()
 
@@ -94,59 +359,48 @@ class _Handler(BaseHTTPRequestHandler):
         self._answer(body=True)
 
     def _answer(self, body: bool) -> None:
+        if self._refused():
+            return
         path = unquote(urlsplit(self.path).path)
-        found = self.server.site.find(path)
-        if found is None:
+        resource = self.server.site.find(path)
+        if resource is None:
             self._error(HTTPStatus.NOT_FOUND, f"{path}: not served here")
             return
-        if isinstance(found, tuple):
-            content, ctype = found
-            size = len(content)
-        else:
-            ctype = mimetypes.guess_type(found.name)[0] or "application/octet-stream"
-            size = found.stat().st_size
-        start, end = 0, size - 1
-        status = HTTPStatus.OK
+        try:
+            with resource.opened() as opened:
+                self._send(opened, body)
+        except _Refused as e:
+            self._error(e.status, e.text, e.size)
+
+    def _send(self, opened: _Opened, body: bool) -> None:
+        start, end, status = 0, opened.size - 1, HTTPStatus.OK
         header = self.headers.get("Range")
-        if header:
-            m = _RANGE.match(header.strip())
-            if m is None or (not m.group(1) and not m.group(2)):
-                self._error(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE, "bad range", size)
-                return
-            if m.group(1):
-                start = int(m.group(1))
-                end = min(int(m.group(2)), size - 1) if m.group(2) else size - 1
-            else:  # the last n bytes
-                start = max(size - int(m.group(2)), 0)
-            if start >= size or start > end:
-                self._error(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE, "range outside", size)
-                return
+        if header is not None:
+            start, end = _byte_range(header, opened.size)
             status = HTTPStatus.PARTIAL_CONTENT
         self.send_response(status)
-        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Type", opened.ctype)
         self.send_header("Accept-Ranges", "bytes")
-        self.send_header("Cache-Control", "no-store")
         self.send_header("Content-Length", str(end - start + 1))
         if status == HTTPStatus.PARTIAL_CONTENT:
-            self.send_header("Content-Range", f"bytes {start}-{end}/{size}")
+            self.send_header("Content-Range", f"bytes {start}-{end}/{opened.size}")
         self.end_headers()
         if not body:
             return
+        self.connection.settimeout(self.server.send_timeout)
+        offset = start
         try:
-            if isinstance(found, tuple):
-                self.wfile.write(found[0][start : end + 1])
-                return
-            with open(found, "rb") as f:
-                f.seek(start)
-                left = end - start + 1
-                while left > 0:
-                    chunk = f.read(min(left, 1 << 20))
-                    if not chunk:
-                        break
-                    self.wfile.write(chunk)
-                    left -= len(chunk)
+            while offset <= end:
+                chunk = opened.read(offset, min(end + 1 - offset, 1 << 20))
+                if not chunk:  # the file shrank under us: the answer is cut, say so by closing
+                    self.close_connection = True
+                    return
+                self.wfile.write(chunk)
+                offset += len(chunk)
         except (BrokenPipeError, ConnectionResetError):
-            pass  # the viewer cancelled the request
+            self.close_connection = True  # the viewer cancelled the request
+        except OSError:  # a read error: the answer is cut
+            self.close_connection = True
 
     def _error(self, status: HTTPStatus, text: str, size: int | None = None) -> None:
         data = (text + "\n").encode()
@@ -156,12 +410,44 @@ class _Handler(BaseHTTPRequestHandler):
         self.send_header("Content-Type", "text/plain; charset=utf-8")
         self.send_header("Content-Length", str(len(data)))
         self.end_headers()
-        self.wfile.write(data)
+        if self.command != "HEAD":
+            self.wfile.write(data)
 
 
 class _Server(ThreadingHTTPServer):
+    """Threads, at most ``max_connections`` of them; more connections are answered 503."""
+
     daemon_threads = True
+    request_queue_size = 1024  # listen backlog: a burst waits here for its answer (or 503)
     site: Site
+    policy: _Policy
+
+    def __init__(self, address: tuple[str, int], max_connections: int) -> None:
+        self.address_family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
+        self.idle_timeout, self.send_timeout = IDLE_TIMEOUT, SEND_TIMEOUT
+        self._slots = threading.BoundedSemaphore(max_connections)
+        super().__init__(address, _Handler)
+
+    def process_request(self, request: Any, client_address: Any) -> None:
+        if not self._slots.acquire(blocking=False):
+            try:
+                request.setblocking(False)
+                request.send(_BUSY)
+            except OSError:
+                pass
+            self.shutdown_request(request)
+            return
+        try:
+            super().process_request(request, client_address)
+        except BaseException:
+            self._slots.release()
+            raise
+
+    def process_request_thread(self, request: Any, client_address: Any) -> None:
+        try:
+            super().process_request_thread(request, client_address)
+        finally:
+            self._slots.release()
 
 
 @dataclass(frozen=True)
@@ -173,6 +459,14 @@ class ViewerUrls:
     urdf: str  # the robot description
     foxglove: str  # Foxglove's web app with the log as a remote file
     studio: str | None  # the local Foxglove Studio with log and layout (if installed)
+    index: str = ""  # the index page with these links
+
+
+def _url_host(host: str) -> str:
+    """``host`` as a URL writes it (a wildcard address: this machine's name)."""
+    if host in ("", "0.0.0.0", "::"):
+        host = socket.gethostname()
+    return f"[{host}]" if ":" in host else host
 
 
 class LogServer:
@@ -180,10 +474,17 @@ class LogServer:
 
     Args:
         data: the log, as read by :func:`amex.log.read_log`.
-        host: interface to listen on (default loopback only).
+        host: interface to listen on: a loopback address unless ``expose_on_network``.
         port: TCP port; 0 picks a free one. The layout's URDF URL contains it.
         studio_dir: a Foxglove Studio web build to serve under ``/studio/`` (default
             ``tests/viewer/`` of this checkout, if ``make test-viewer`` installed it there).
+        expose_on_network: allow a ``host`` that is not loopback: everyone who can reach it
+            can then read the log, its robot description and meshes.
+
+    Raises:
+        LogError: a non-loopback ``host`` without ``expose_on_network``; the log is not a
+            regular file; its robot description cannot be served (:func:`viewer_urdf`).
+        OSError: the address cannot be listened on.
     """
 
     def __init__(
@@ -192,39 +493,60 @@ class LogServer:
         host: str = "127.0.0.1",
         port: int = DEFAULT_PORT,
         studio_dir: Path | None = None,
+        expose_on_network: bool = False,
     ) -> None:
-        self._server = _Server((host, port), _Handler)
-        self.host, self.port = host, int(self._server.server_address[1])
+        if not (expose_on_network or is_loopback(host)):
+            raise LogError(
+                f"{host} is not a loopback address: everyone who can reach it could read the "
+                "log; pass expose_on_network=True (amex-log view --expose-on-network) to allow it"
+            )
+        host = host.strip("[]")
+        self._snapshot = _Snapshot(data.path)
         try:
-            self._build(data, host, studio_dir)
+            self._server = _Server((host, port), MAX_CONNECTIONS)
+        except BaseException:
+            self._snapshot.close()
+            raise
+        self.host, self.port = host, int(self._server.server_address[1])
+        names = {"127.0.0.1", "localhost", "[::1]", _url_host(host).lower()}
+        if expose_on_network:
+            names |= {socket.gethostname().lower(), socket.getfqdn().lower()}
+        self._server.policy = _Policy(self.port, frozenset(names), expose_on_network)
+        self._thread: threading.Thread | None = None
+        try:
+            self._build(data, studio_dir)
         except BaseException:
             self._server.server_close()  # e.g. the log's URDF is missing: free the port
+            self._snapshot.close()
             raise
-        self._thread: threading.Thread | None = None
 
-    def _build(self, data: LogData, host: str, studio_dir: Path | None) -> None:
-        base = f"http://{host}:{self.port}"
+    def _build(self, data: LogData, studio_dir: Path | None) -> None:
+        base = f"http://{_url_host(self.host)}:{self.port}"
         log_path = "/" + quote(data.path.name)
-        site = Site(files={unquote(log_path): data.path})
+        site = Site(resources={unquote(log_path): self._snapshot})
         robot = data.metadata.get("robot", {})
         urdf_url: str | None = None
+        self.urdf: ViewerUrdf | None = None
         if robot.get("urdf_path"):
-            urdf = viewer_urdf(
+            self.urdf = viewer_urdf(
                 robot["urdf_path"], f"{base}/robot/", robot.get("package_dirs") or ()
             )
-            site.texts["/robot/robot.urdf"] = (urdf.text.encode(), "application/xml")
-            site.files.update({f"/robot/{k}": v for k, v in urdf.files.items()})
+            site.resources["/robot/robot.urdf"] = _Text(self.urdf.text.encode(), "application/xml")
+            for name, path in self.urdf.files.items():
+                identity = _identity(path.stat())
+                site.resources[f"/robot/{name}"] = _File(path, MAX_MESH_BYTES, identity)
             urdf_url = f"{base}/robot/robot.urdf"
         layout = build_layout(data, urdf_url=urdf_url)
-        site.texts["/favicon.ico"] = (b"", "image/x-icon")
-        site.texts["/layout.json"] = (json.dumps(layout, indent=2).encode(), "application/json")
+        site.resources["/favicon.ico"] = _Text(b"", "image/x-icon")
+        site.resources["/layout.json"] = _Text(
+            json.dumps(layout, indent=2).encode(), "application/json"
+        )
         studio = studio_dir if studio_dir is not None else STUDIO_DIR
         has_studio = (studio / "index.html").is_file() and (
             studio / "node_modules" / "@foxglove" / "studio-base" / "assets" / "index.js"
         ).is_file()
         if has_studio:
-            site.static_dirs["/studio/"] = studio
-        self._server.site = site
+            site.studio = studio.resolve()
         self.layout = layout
         log_url = base + log_path
         query = {"ds": "remote-file", "ds.url": log_url}
@@ -239,10 +561,15 @@ class LogServer:
                 if has_studio
                 else None
             ),
+            index=base + "/",
         )
+        site.resources["/"] = _Text(_index_page(data.path.name, self.urls), "text/html")
+        self._server.site = site
 
     def start(self) -> LogServer:
-        """Serve in a background thread; return self."""
+        """Serve in a background thread (once); return self."""
+        if self._thread is not None:
+            return self
         self._thread = threading.Thread(
             target=self._server.serve_forever, name="amex-log-view", daemon=True
         )
@@ -260,9 +587,31 @@ class LogServer:
             self._thread.join(timeout=5)
             self._thread = None
         self._server.server_close()
+        self._snapshot.close()
 
     def __enter__(self) -> LogServer:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _index_page(name: str, urls: ViewerUrls) -> bytes:
+    """The page at ``/``: the links ``amex-log view`` prints."""
+    links = [
+        ("Foxglove web app", urls.foxglove),
+        ("local Foxglove Studio", urls.studio),
+        ("the layout (save it, then Layouts > Import from file)", urls.layout),
+        ("the robot description", urls.urdf),
+        ("the log", urls.log),
+    ]
+    items = "".join(
+        f'<li><a href="{html.escape(url)}">{html.escape(label)}</a></li>\n'
+        for label, url in links
+        if url
+    )
+    title = html.escape(f"amex-log view: {name}")
+    return (
+        f'<!doctype html>\n<html lang="en"><head><meta charset="utf-8"><title>{title}</title>'
+        f"</head>\n<body><h1>{title}</h1>\n<ul>\n{items}</ul></body></html>\n"
+    ).encode()

@@ -8,18 +8,33 @@ looked up in the directories on ``ROS_PACKAGE_PATH`` and then in every ancestor 
 directory (a folder named ``PKG``, or holding ``PKG/rest``); ``file://`` and plain paths are taken
 relative to the URDF. A visual whose mesh cannot be found is replaced by the link's collision
 shapes (the Panda's collision model is cylinders and spheres), so the arm is always drawn.
+
+A log, and so the URDF it names, may come from someone else, and whatever is listed here is served
+over HTTP: :func:`servable_mesh` lets through only mesh files (:data:`MESH_SUFFIXES`, regular
+files of at most :data:`MAX_MESH_BYTES`) whose real path, symbolic links followed, lies inside the
+package directory they were resolved in. A package directory is one holding a ``package.xml`` or
+one the URDF itself lies in, never ``/``, the home directory or one of its ancestors; a
+``file://`` or plain path must lie inside the URDF's own package (the nearest such directory
+around it, else the URDF's directory). A refused mesh is drawn like a missing one, and listed in
+:attr:`ViewerUrdf.refused`. The URDF is read only if it is a regular file of at most
+:data:`MAX_URDF_BYTES` whose root element is ``<robot>``. ``docs/viewers-security.md`` says why.
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote, unquote, urlparse
 
 from amex.core.errors import LogError
+
+MESH_SUFFIXES = (".dae", ".stl", ".obj", ".glb", ".gltf")  # what Foxglove's URDF layer loads
+MAX_MESH_BYTES = 128 << 20  # [bytes] per mesh file
+MAX_URDF_BYTES = 16 << 20  # [bytes]
 
 
 @dataclass(frozen=True)
@@ -29,13 +44,28 @@ class ViewerUrdf:
     Attributes:
         text: the URDF, every mesh ``filename`` a URL under the base URL.
         files: the mesh files to serve, by their path under the base URL (``meshes/0/link0.dae``).
-        replaced: names of the links whose visual meshes were missing and were replaced by their
-            collision shapes.
+        replaced: names of the links whose visual meshes were missing or refused and were
+            replaced by their collision shapes.
+        refused: the mesh references found but not served, each with the reason.
     """
 
     text: str
     files: dict[str, Path] = field(default_factory=dict)
     replaced: tuple[str, ...] = ()
+    refused: tuple[str, ...] = ()
+
+
+def _package_candidates(
+    package: str, urdf_path: Path, package_dirs: Sequence[str | Path]
+) -> Iterator[Path]:
+    """The directories ``package://package/...`` may name, in lookup order."""
+    base = urdf_path.parent
+    roots = [Path(p) for p in package_dirs]
+    roots += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
+    for root in [*roots, base, *base.resolve().parents]:
+        if root.name == package:
+            yield root
+        yield root / package
 
 
 def resolve_mesh(
@@ -48,22 +78,131 @@ def resolve_mesh(
         urdf_path: the URDF it appears in (relative paths start there).
         package_dirs: directories searched first for ``package://`` URLs (the robot's own).
     """
-    base = urdf_path.parent
     if filename.startswith("package://"):
         package, _, rest = filename[len("package://") :].partition("/")
-        roots = [Path(p) for p in package_dirs]
-        roots += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
-        for root in [*roots, base, *base.resolve().parents]:
-            if root.name == package and (root / rest).is_file():
-                return (root / rest).resolve()
-            if (root / package / rest).is_file():
-                return (root / package / rest).resolve()
+        for directory in _package_candidates(package, urdf_path, package_dirs):
+            if (directory / rest).is_file():
+                return (directory / rest).resolve()
         return None
     if filename.startswith("file://"):
         filename = unquote(urlparse(filename).path)
     path = Path(filename)
-    path = path if path.is_absolute() else base / path
+    path = path if path.is_absolute() else urdf_path.parent / path
     return path.resolve() if path.is_file() else None
+
+
+def _too_wide(directory: Path) -> bool:
+    """``/``, the home directory or one of its ancestors: no robot's package."""
+    home = Path.home().resolve()
+    return directory == Path(directory.anchor) or home.is_relative_to(directory)
+
+
+def _is_package(directory: Path, urdf_dir: Path) -> bool:
+    """Whether ``directory`` (resolved) may hold a robot's files (see the module notes)."""
+    if _too_wide(directory):
+        return False
+    return urdf_dir.is_relative_to(directory) or (directory / "package.xml").is_file()
+
+
+def _own_package(urdf_dir: Path) -> Path | None:
+    """The URDF's package: the nearest directory around it holding ``package.xml``.
+
+    Else the URDF's directory; None if that is too wide (:func:`_too_wide`).
+    """
+    for directory in [urdf_dir, *urdf_dir.parents]:
+        if _too_wide(directory):
+            break
+        if (directory / "package.xml").is_file():
+            return directory
+    return None if _too_wide(urdf_dir) else urdf_dir
+
+
+def _checked(path: Path, package: Path, filename: str) -> tuple[Path | None, str]:
+    """``(real path, "")`` if the file at ``path`` may be served from ``package``."""
+    try:
+        real = path.resolve(strict=True)
+        info = real.stat()
+    except (OSError, RuntimeError):  # a missing file, a symbolic link loop
+        return None, ""
+    if not real.is_relative_to(package):
+        return None, f"{filename}: outside the robot's package {package}"
+    if real.suffix.lower() not in MESH_SUFFIXES:
+        return None, f"{filename}: not a mesh file ({', '.join(MESH_SUFFIXES)})"
+    if not stat.S_ISREG(info.st_mode):
+        return None, f"{filename}: not a regular file"
+    if info.st_size > MAX_MESH_BYTES:
+        return None, f"{filename}: larger than {MAX_MESH_BYTES >> 20} MiB"
+    return real, ""
+
+
+def servable_mesh(
+    filename: str, urdf_path: Path, package_dirs: Sequence[str | Path] = ()
+) -> tuple[Path | None, str]:
+    """The file a mesh reference names if it may be served (see the module notes).
+
+    Args:
+        filename: the mesh's ``filename`` attribute.
+        urdf_path: the URDF it appears in.
+        package_dirs: directories searched first for ``package://`` URLs.
+
+    Returns:
+        ``(path, "")`` for a servable mesh; ``(None, "")`` if there is no such file;
+        ``(None, reason)`` if there is one but it is not served.
+    """
+    urdf_dir = urdf_path.resolve().parent
+    if filename.startswith("package://"):
+        package, _, rest = filename[len("package://") :].partition("/")
+        if package in ("", ".", "..") or "\\" in package:
+            return None, f"{filename}: not a package name"
+        for directory in _package_candidates(package, urdf_path, package_dirs):
+            if not (directory / rest).exists():
+                continue
+            directory = directory.resolve()
+            if not _is_package(directory, urdf_dir):
+                return None, f"{filename}: {directory} is not a robot package"
+            return _checked(directory / rest, directory, filename)
+        return None, ""
+    path = Path(unquote(urlparse(filename).path) if filename.startswith("file://") else filename)
+    path = path if path.is_absolute() else urdf_dir / path
+    own = _own_package(urdf_dir)
+    if own is None:
+        exists = path.exists()
+        return None, f"{filename}: the URDF's directory {urdf_dir} is no package" if exists else ""
+    return _checked(path, own, filename)
+
+
+def read_urdf(urdf_path: Path) -> ET.Element:
+    """The root ``<robot>`` element of the URDF file at ``urdf_path``, read with bounds.
+
+    Raises:
+        LogError: the file is missing, not a regular file, too large, not XML or not a URDF.
+    """
+    try:
+        fd = os.open(urdf_path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)  # a FIFO: no wait
+    except OSError as e:
+        raise LogError(
+            f"the log's robot description {urdf_path} is not on this machine ({e.strerror}); "
+            "view the log where it was recorded, or install the robot's package"
+        ) from e
+    with os.fdopen(fd, "rb") as f:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            raise LogError(f"the log's robot description {urdf_path} is not a regular file")
+        data = f.read(MAX_URDF_BYTES + 1)
+    if len(data) > MAX_URDF_BYTES:
+        raise LogError(
+            f"the log's robot description {urdf_path} is larger than {MAX_URDF_BYTES >> 20} MiB"
+        )
+    try:
+        root = ET.fromstring(data)
+    except ET.ParseError as e:
+        raise LogError(f"the robot description {urdf_path} is not valid XML: {e}") from e
+    if root.tag != "robot":
+        raise LogError(
+            f"the log's robot description {urdf_path} is not a URDF: its root element is "
+            f"<{root.tag}>, not <robot>"
+        )
+    return root
 
 
 def viewer_urdf(
@@ -77,30 +216,23 @@ def viewer_urdf(
         package_dirs: where ``package://`` URLs resolve first (the log's ``robot`` metadata).
 
     Raises:
-        LogError: the URDF is missing or is not XML.
+        LogError: the URDF is missing, not a regular file, too large, not XML or not a URDF.
     """
     urdf_path = Path(urdf_path)
-    try:
-        root = ET.fromstring(urdf_path.read_text())
-    except OSError as e:
-        raise LogError(
-            f"the log's robot description {urdf_path} is not on this machine ({e.strerror}); "
-            "view the log where it was recorded, or install the robot's package"
-        ) from e
-    except ET.ParseError as e:
-        raise LogError(f"the robot description {urdf_path} is not valid XML: {e}") from e
+    root = read_urdf(urdf_path)
     files: dict[str, Path] = {}
     served: dict[Path, str] = {}
     replaced: list[str] = []
+    refused: dict[str, None] = {}
 
     def served_everything(element: ET.Element) -> bool:
         ok = True
         for mesh in element.iter("mesh"):
             filename = mesh.get("filename", "")
-            if filename.startswith(base_url):
-                continue
-            path = resolve_mesh(filename, urdf_path, package_dirs)
+            path, reason = servable_mesh(filename, urdf_path, package_dirs)
             if path is None:
+                if reason:
+                    refused[reason] = None
                 ok = False
                 continue
             if path not in served:
@@ -125,4 +257,6 @@ def viewer_urdf(
             link.append(visual)
         replaced.append(link.get("name", "?"))
     text = ET.tostring(root, encoding="unicode")
-    return ViewerUrdf('<?xml version="1.0"?>\n' + text + "\n", files, tuple(replaced))
+    return ViewerUrdf(
+        '<?xml version="1.0"?>\n' + text + "\n", files, tuple(replaced), tuple(refused)
+    )

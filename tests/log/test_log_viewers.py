@@ -151,16 +151,23 @@ def test_missing_meshes_are_drawn_as_the_links_collision_shapes(tmp_path):
 def test_server_answers_byte_ranges_with_cors_and_the_private_network_preflight(logs):
     data = read_log(logs["dmp"])
     size = data.path.stat().st_size
+    foxglove = {"Origin": "https://app.foxglove.dev"}
     with LogServer(data, port=0) as server:
-        request = urllib.request.Request(server.urls.log, headers={"Range": "bytes=0-7"})
+        request = urllib.request.Request(
+            server.urls.log, headers={"Range": "bytes=0-7", **foxglove}
+        )
         with urllib.request.urlopen(request) as response:
             assert response.status == 206 and response.read() == b"\x89MCAP0\r\n"
             assert response.headers["Content-Range"] == f"bytes 0-7/{size}"
-            assert response.headers["Access-Control-Allow-Origin"] == "*"
+            assert response.headers["Access-Control-Allow-Origin"] == "https://app.foxglove.dev"
         tail = urllib.request.Request(server.urls.log, headers={"Range": "bytes=-8"})
         with urllib.request.urlopen(tail) as response:
             assert response.read() == data.path.read_bytes()[-8:]
-        preflight = urllib.request.Request(server.urls.log, method="OPTIONS")
+        preflight = urllib.request.Request(
+            server.urls.log,
+            method="OPTIONS",
+            headers={"Access-Control-Request-Private-Network": "true", **foxglove},
+        )
         with urllib.request.urlopen(preflight) as response:
             assert response.headers["Access-Control-Allow-Private-Network"] == "true"
         with urllib.request.urlopen(server.urls.urdf) as response:
