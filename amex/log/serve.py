@@ -1,280 +1,55 @@
 """``amex-log view``: serve a log, its robot and a layout to Foxglove in a browser.
 
 A small HTTP server (standard library only) that answers what a web viewer asks for: byte ranges
-(Foxglove reads an MCAP file's index, then the chunks it needs) and CORS headers for Foxglove's web
-app. It serves
-
-========================= ===========================================================
-``/``                     an index page with the links below
-``/<log name>.mcap``      the log
-``/robot/robot.urdf``     the log's robot, meshes rewritten to URLs (:mod:`amex.log.urdf`)
-``/robot/meshes/...``     the meshes it uses
-``/layout.json``          the layout for this log (:mod:`amex.log.layout`), URDF from above
-``/studio/...``           a local Foxglove Studio web build, if one is installed (``tests/viewer/``)
-========================= ===========================================================
-
-and :attr:`LogServer.urls` gives the links that open them: Foxglove's web app with the log as a
-remote file, and the local Studio with the log and the layout preselected.
-
-Nothing else, and only to whom needs it (``docs/viewers-security.md`` says why):
-
-- The log is the file opened at the start: deleted later, it is served as it was; changed in
-  place, it is answered with 410 Gone. A mesh is opened per request without following a symbolic
-  link and served only while it is the regular file :mod:`amex.log.urdf` let through; the Studio
-  build only its page, its script and the bundles it loads.
-- The server listens on a loopback address unless ``expose_on_network``. A request whose ``Host``
-  is not this server's name and port is refused with 421 (DNS rebinding); a page of an origin
-  other than Foxglove's web app (:data:`FOXGLOVE_ORIGIN`) and this server gets 403 and no CORS
-  headers, as does a cross-site request without an origin (``Sec-Fetch-Site``, e.g. an
-  ``<img>``); only the allowed origins get the private-network preflight.
-- Bounded: at most :data:`MAX_CONNECTIONS` connections at once (more are answered 503),
-  :data:`IDLE_TIMEOUT` to send a request, :data:`SEND_TIMEOUT` for a stalled reader, one range
-  ``bytes=a-b`` of at most 18 digits each (else 416).
+of the log (Foxglove reads an MCAP file's index, then the chunks it needs), the log's robot with
+its meshes (:mod:`amex.log.urdf`), a layout (:mod:`amex.log.layout`), an index page at ``/`` and,
+if installed, a local Foxglove Studio build; :attr:`LogServer.urls` gives the links. Nothing else,
+and only to whom needs it: loopback unless ``expose_on_network``, the ``Host`` checked (421),
+Foxglove's web app and this server as the only origins (:mod:`amex.log.serve_policy`), files
+opened without links and bounded (:mod:`amex.log.serve_files`), :data:`MAX_CONNECTIONS` at once
+with :data:`IDLE_TIMEOUT`. What is served, to whom and why: ``docs/viewers-security.md``.
 """
 
 from __future__ import annotations
 
 import html
-import ipaddress
 import json
-import mimetypes
-import os
 import re
 import socket
-import stat
 import threading
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from http import HTTPStatus
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any
 from urllib.parse import quote, unquote, urlencode, urlsplit
 
 from amex.core.errors import LogError
 from amex.log.layout import build_layout
 from amex.log.reader import LogData
+from amex.log.serve_files import (
+    STUDIO_DIR,
+    FileResource,
+    Opened,
+    Refused,
+    Site,
+    Snapshot,
+    TextResource,
+    file_identity,
+)
+from amex.log.serve_policy import FOXGLOVE_ORIGIN, Policy, byte_range, is_loopback
 from amex.log.urdf import MAX_MESH_BYTES, ViewerUrdf, viewer_urdf
 
-FOXGLOVE_ORIGIN = "https://app.foxglove.dev"
 FOXGLOVE_APP = FOXGLOVE_ORIGIN + "/"
 DEFAULT_PORT = 8765
 MAX_CONNECTIONS = 32  # at once; a browser opens at most 6 per server
 IDLE_TIMEOUT = 5.0  # [s] for a request to arrive, on a new or a kept-alive connection
 SEND_TIMEOUT = 60.0  # [s] for a stalled reader to take the next piece of an answer
-MAX_STUDIO_FILE_BYTES = 256 << 20  # [bytes]
-# make test-viewer installs it
-STUDIO_DIR = Path(__file__).resolve().parents[2] / "tests" / "viewer"
-STUDIO_FILES = (
-    "index.html",
-    "main.js",
-    "node_modules/react/umd/react.production.min.js",
-    "node_modules/react-dom/umd/react-dom.production.min.js",
-)
-STUDIO_TREES = ("node_modules/@foxglove/studio-base/assets/",)
-_RANGE = re.compile(r"bytes=(\d{0,18})-(\d{0,18})")
-_TOKENS = re.compile(r"[A-Za-z0-9!#$%&'*+.^_`|~-]+(\s*,\s*[A-Za-z0-9!#$%&'*+.^_`|~-]+)*")
-_OPEN_FLAGS = os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+TOKENS = re.compile(r"[A-Za-z0-9!#$%&'*+.^_`|~-]+(\s*,\s*[A-Za-z0-9!#$%&'*+.^_`|~-]+)*")
 _BUSY = (
     b"HTTP/1.1 503 Service Unavailable\r\nContent-Type: text/plain\r\nContent-Length: 20\r\n"
     b"Retry-After: 1\r\nConnection: close\r\n\r\ntoo many connections"
 )
-
-
-class _Refused(Exception):
-    """A request answered with an error status instead."""
-
-    def __init__(self, status: HTTPStatus, text: str, size: int | None = None) -> None:
-        super().__init__(text)
-        self.status, self.text, self.size = status, text, size
-
-
-class _Opened(NamedTuple):
-    size: int  # [bytes]
-    ctype: str  # its media type
-    read: Callable[[int, int], bytes]  # (offset, count) -> at most count bytes
-
-
-@dataclass(frozen=True)
-class _Text:
-    """A generated answer (the URDF, the layout, the index)."""
-
-    content: bytes
-    ctype: str
-
-    @contextmanager
-    def opened(self) -> Iterator[_Opened]:
-        yield _Opened(
-            len(self.content), self.ctype, lambda offset, n: self.content[offset : offset + n]
-        )
-
-
-@dataclass(frozen=True)
-class _File:
-    """A file opened per request, never through a symbolic link, if it is a regular file.
-
-    ``identity`` (device, inode, size, modification time) at the start, if given, must still be
-    the file's: a file replaced or rewritten since is not served.
-    """
-
-    path: Path
-    max_bytes: int  # [bytes]
-    identity: tuple[int, ...] | None = None
-
-    @contextmanager
-    def opened(self) -> Iterator[_Opened]:
-        try:
-            fd = os.open(self.path, _OPEN_FLAGS)
-        except OSError:
-            raise _Refused(HTTPStatus.NOT_FOUND, f"{self.path.name}: no longer there") from None
-        try:
-            info = os.fstat(fd)
-            same = self.identity in (None, _identity(info))
-            if not (stat.S_ISREG(info.st_mode) and same and info.st_size <= self.max_bytes):
-                raise _Refused(HTTPStatus.GONE, f"{self.path.name}: changed since the start")
-            ctype = mimetypes.guess_type(self.path.name)[0] or "application/octet-stream"
-            yield _Opened(info.st_size, ctype, lambda offset, n: os.pread(fd, n, offset))
-        finally:
-            os.close(fd)
-
-
-def _identity(info: os.stat_result) -> tuple[int, ...]:
-    return info.st_dev, info.st_ino, info.st_size, info.st_mtime_ns
-
-
-class _Snapshot:
-    """The log, opened once: served as it was while unchanged (deleted too), else 410."""
-
-    def __init__(self, path: Path) -> None:
-        self.fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
-        info = os.fstat(self.fd)
-        if not stat.S_ISREG(info.st_mode):
-            os.close(self.fd)
-            raise LogError(f"{path} is not a regular file; amex-log view serves log files")
-        self.size, self.mtime_ns = info.st_size, info.st_mtime_ns
-
-    @contextmanager
-    def opened(self) -> Iterator[_Opened]:
-        info = os.fstat(self.fd)
-        if (info.st_size, info.st_mtime_ns) != (self.size, self.mtime_ns):
-            raise _Refused(
-                HTTPStatus.GONE, "the log changed since amex-log view started; restart it"
-            )
-        yield _Opened(
-            self.size, "application/octet-stream", lambda offset, n: os.pread(self.fd, n, offset)
-        )
-
-    def close(self) -> None:
-        os.close(self.fd)
-
-
-_Resource = _Text | _File | _Snapshot
-
-
-@dataclass
-class Site:
-    """What the server answers, by URL path: generated texts, files, and a Studio build."""
-
-    resources: dict[str, _Resource] = field(default_factory=dict)
-    studio: Path | None = None  # resolved
-
-    def find(self, path: str) -> _Resource | None:
-        """The resource at URL ``path``; None if there is none."""
-        if path in self.resources:
-            return self.resources[path]
-        if self.studio is None or not path.startswith("/studio/"):
-            return None
-        relative = path[len("/studio/") :]
-        if any(part in ("", ".", "..") for part in relative.split("/")):
-            return None
-        if relative not in STUDIO_FILES and not relative.startswith(STUDIO_TREES):
-            return None
-        target = (self.studio / relative).resolve()
-        if not (target.is_relative_to(self.studio) and target.is_file()):
-            return None
-        return _File(target, MAX_STUDIO_FILE_BYTES)
-
-
-def is_loopback(host: str) -> bool:
-    """Whether ``host`` (a name or an address) is this machine's loopback interface only."""
-    if host.lower() == "localhost":
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
-
-
-def _split_host(value: str) -> tuple[str, int] | None:
-    """``(host, port)`` of a ``Host`` header value (port 80 if none); None if malformed."""
-    value = value.strip().lower()
-    if value.startswith("["):
-        host, bracket, rest = value.partition("]")
-        host += bracket
-    else:
-        host, _, port = value.partition(":")
-        rest = ":" + port if port or value.endswith(":") else ""
-    if not rest:
-        return (host, 80) if host else None
-    if not (rest.startswith(":") and rest[1:].isdigit() and len(rest) <= 6):
-        return None
-    return host, int(rest[1:])
-
-
-@dataclass(frozen=True)
-class _Policy:
-    """Which ``Host`` names and which browser origins this server answers."""
-
-    port: int
-    names: frozenset[str]  # lower case, IPv6 addresses in brackets
-    any_address: bool = False  # exposed on the network: an IP address names this host too
-
-    def host_ok(self, value: str) -> bool:
-        split = _split_host(value)
-        if split is None or split[1] != self.port:
-            return False
-        if split[0] in self.names:
-            return True
-        return self.any_address and split[0] != "" and _is_address(split[0])
-
-    def origin_ok(self, origin: str) -> bool:
-        if origin == FOXGLOVE_ORIGIN:
-            return True
-        return origin.startswith("http://") and "/" not in origin[7:] and self.host_ok(origin[7:])
-
-
-def _is_address(host: str) -> bool:
-    try:
-        ipaddress.ip_address(host.strip("[]"))
-    except ValueError:
-        return False
-    return True
-
-
-def _byte_range(header: str, size: int) -> tuple[int, int]:
-    """``(first, last)`` byte of a ``Range`` header (one range) of a ``size``-byte answer.
-
-    Raises:
-        _Refused: 416 for a malformed, multiple, absurd or unsatisfiable range.
-    """
-    m = _RANGE.fullmatch(header.strip())
-    if m is None or not (m.group(1) or m.group(2)):
-        raise _Refused(
-            HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE,
-            "Range: only one range bytes=FIRST-[LAST] or bytes=-SUFFIX, at most 18 digits each",
-            size,
-        )
-    if m.group(1):
-        start = int(m.group(1))
-        end = min(int(m.group(2)), size - 1) if m.group(2) else size - 1
-    else:  # the last n bytes
-        start, end = max(size - int(m.group(2)), 0), size - 1
-        if int(m.group(2)) == 0:
-            start = size
-    if start >= size or start > end:
-        raise _Refused(HTTPStatus.REQUESTED_RANGE_NOT_SATISFIABLE, "range outside", size)
-    return start, end
 
 
 class _Handler(BaseHTTPRequestHandler):
@@ -342,7 +117,7 @@ class _Handler(BaseHTTPRequestHandler):
         if self._cors is not None:
             self.send_header("Access-Control-Allow-Methods", "GET, HEAD")
             asked = self.headers.get("Access-Control-Request-Headers", "")
-            if _TOKENS.fullmatch(asked):
+            if TOKENS.fullmatch(asked):
                 self.send_header("Access-Control-Allow-Headers", asked)
             if self.headers.get("Access-Control-Request-Private-Network") == "true":
                 self.send_header("Access-Control-Allow-Private-Network", "true")
@@ -369,14 +144,14 @@ class _Handler(BaseHTTPRequestHandler):
         try:
             with resource.opened() as opened:
                 self._send(opened, body)
-        except _Refused as e:
+        except Refused as e:
             self._error(e.status, e.text, e.size)
 
-    def _send(self, opened: _Opened, body: bool) -> None:
+    def _send(self, opened: Opened, body: bool) -> None:
         start, end, status = 0, opened.size - 1, HTTPStatus.OK
         header = self.headers.get("Range")
         if header is not None:
-            start, end = _byte_range(header, opened.size)
+            start, end = byte_range(header, opened.size)
             status = HTTPStatus.PARTIAL_CONTENT
         self.send_response(status)
         self.send_header("Content-Type", opened.ctype)
@@ -420,7 +195,7 @@ class _Server(ThreadingHTTPServer):
     daemon_threads = True
     request_queue_size = 1024  # listen backlog: a burst waits here for its answer (or 503)
     site: Site
-    policy: _Policy
+    policy: Policy
 
     def __init__(self, address: tuple[str, int], max_connections: int) -> None:
         self.address_family = socket.AF_INET6 if ":" in address[0] else socket.AF_INET
@@ -501,7 +276,7 @@ class LogServer:
                 "log; pass expose_on_network=True (amex-log view --expose-on-network) to allow it"
             )
         host = host.strip("[]")
-        self._snapshot = _Snapshot(data.path)
+        self._snapshot = Snapshot(data.path)
         try:
             self._server = _Server((host, port), MAX_CONNECTIONS)
         except BaseException:
@@ -511,7 +286,7 @@ class LogServer:
         names = {"127.0.0.1", "localhost", "[::1]", _url_host(host).lower()}
         if expose_on_network:
             names |= {socket.gethostname().lower(), socket.getfqdn().lower()}
-        self._server.policy = _Policy(self.port, frozenset(names), expose_on_network)
+        self._server.policy = Policy(self.port, frozenset(names), expose_on_network)
         self._thread: threading.Thread | None = None
         try:
             self._build(data, studio_dir)
@@ -531,14 +306,15 @@ class LogServer:
             self.urdf = viewer_urdf(
                 robot["urdf_path"], f"{base}/robot/", robot.get("package_dirs") or ()
             )
-            site.resources["/robot/robot.urdf"] = _Text(self.urdf.text.encode(), "application/xml")
+            urdf = TextResource(self.urdf.text.encode(), "application/xml")
+            site.resources["/robot/robot.urdf"] = urdf
             for name, path in self.urdf.files.items():
-                identity = _identity(path.stat())
-                site.resources[f"/robot/{name}"] = _File(path, MAX_MESH_BYTES, identity)
+                identity = file_identity(path.stat())
+                site.resources[f"/robot/{name}"] = FileResource(path, MAX_MESH_BYTES, identity)
             urdf_url = f"{base}/robot/robot.urdf"
         layout = build_layout(data, urdf_url=urdf_url)
-        site.resources["/favicon.ico"] = _Text(b"", "image/x-icon")
-        site.resources["/layout.json"] = _Text(
+        site.resources["/favicon.ico"] = TextResource(b"", "image/x-icon")
+        site.resources["/layout.json"] = TextResource(
             json.dumps(layout, indent=2).encode(), "application/json"
         )
         studio = studio_dir if studio_dir is not None else STUDIO_DIR
@@ -563,7 +339,7 @@ class LogServer:
             ),
             index=base + "/",
         )
-        site.resources["/"] = _Text(_index_page(data.path.name, self.urls), "text/html")
+        site.resources["/"] = TextResource(_index_page(data.path.name, self.urls), "text/html")
         self._server.site = site
 
     def start(self) -> LogServer:
