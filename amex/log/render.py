@@ -3,8 +3,8 @@
 Used by ``amex-log video`` and Fig. 4. The arm is compiled by MuJoCo from the URDF a log names
 (its ``robot`` metadata), not from a robot catalogue, so any logged robot renders: visuals are
 dropped (MuJoCo reads no Collada) and the collision shapes drawn, mesh references are resolved
-like :func:`amex.log.urdf.resolve_mesh` (a shape whose mesh is missing, or in a format MuJoCo does
-not read, is left out). Spheres and paths are added to the scene per frame
+by :func:`amex.robot.meshes.resolve_mesh` (a shape whose mesh is missing, or in a format MuJoCo
+does not read, is left out). Spheres and paths are added to the scene per frame
 (:class:`SceneDrawer`), so nothing but the arm lives in the model.
 
 Headless OpenGL: ``MUJOCO_GL`` if set (``egl`` or ``osmesa``), else EGL, else OSMesa; Debian's
@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from amex.core.errors import RenderError
-from amex.log.urdf import resolve_mesh
+from amex.robot.meshes import resolve_mesh
 
 MESH_FORMATS = (".stl", ".obj", ".msh")  # what MuJoCo's compiler reads
 GL_HELP = "install Debian's libegl1 libegl-mesa0 libgl1-mesa-dri (make render-deps)"

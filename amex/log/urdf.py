@@ -25,12 +25,13 @@ from __future__ import annotations
 import os
 import stat
 import xml.etree.ElementTree as ET
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote, unquote, urlparse
 
 from amex.core.errors import LogError
+from amex.robot.meshes import package_candidates
 
 MESH_SUFFIXES = (".dae", ".stl", ".obj", ".glb", ".gltf")  # what Foxglove's URDF layer loads
 MAX_MESH_BYTES = 128 << 20  # [bytes] per mesh file
@@ -53,42 +54,6 @@ class ViewerUrdf:
     files: dict[str, Path] = field(default_factory=dict)
     replaced: tuple[str, ...] = ()
     refused: tuple[str, ...] = ()
-
-
-def _package_candidates(
-    package: str, urdf_path: Path, package_dirs: Sequence[str | Path]
-) -> Iterator[Path]:
-    """The directories ``package://package/...`` may name, in lookup order."""
-    base = urdf_path.parent
-    roots = [Path(p) for p in package_dirs]
-    roots += [Path(p) for p in os.environ.get("ROS_PACKAGE_PATH", "").split(os.pathsep) if p]
-    for root in [*roots, base, *base.resolve().parents]:
-        if root.name == package:
-            yield root
-        yield root / package
-
-
-def resolve_mesh(
-    filename: str, urdf_path: Path, package_dirs: Sequence[str | Path] = ()
-) -> Path | None:
-    """The file a URDF mesh reference points to, or None if it is not on this machine.
-
-    Args:
-        filename: the mesh's ``filename`` attribute.
-        urdf_path: the URDF it appears in (relative paths start there).
-        package_dirs: directories searched first for ``package://`` URLs (the robot's own).
-    """
-    if filename.startswith("package://"):
-        package, _, rest = filename[len("package://") :].partition("/")
-        for directory in _package_candidates(package, urdf_path, package_dirs):
-            if (directory / rest).is_file():
-                return (directory / rest).resolve()
-        return None
-    if filename.startswith("file://"):
-        filename = unquote(urlparse(filename).path)
-    path = Path(filename)
-    path = path if path.is_absolute() else urdf_path.parent / path
-    return path.resolve() if path.is_file() else None
 
 
 def _too_wide(directory: Path) -> bool:
@@ -154,7 +119,7 @@ def servable_mesh(
         package, _, rest = filename[len("package://") :].partition("/")
         if package in ("", ".", "..") or "\\" in package:
             return None, f"{filename}: not a package name"
-        for directory in _package_candidates(package, urdf_path, package_dirs):
+        for directory in package_candidates(package, urdf_path, package_dirs):
             if not (directory / rest).exists():
                 continue
             directory = directory.resolve()

@@ -21,6 +21,7 @@ import hashlib
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from functools import cached_property
+from pathlib import Path
 
 import coal
 import mujoco
@@ -30,6 +31,7 @@ import pinocchio as pin
 from amex.core.errors import ConfigError
 from amex.robot.capsules import Capsule, fit_capsules, merge_primitives
 from amex.robot.description import RobotDescription, urdf_joints
+from amex.robot.meshes import check_collision_meshes
 
 #: Pinocchio joint models the loop can drive: 1-DoF revolute joints.
 DRIVABLE_JOINTS = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
@@ -234,6 +236,7 @@ def build_robot(description: RobotDescription) -> RobotModel:
     except (ValueError, RuntimeError) as e:
         raise ConfigError(f"invalid robot.urdf={d.urdf_path!r}: {e}") from e
     locked = _check_joints(full, d)
+    check_collision_meshes(d.urdf_text, Path(d.urdf_path), d.package_dirs)
     try:
         geom = pin.buildGeomFromUrdfString(
             full, d.urdf_text, pin.GeometryType.COLLISION, package_dirs=list(d.package_dirs)

@@ -21,8 +21,9 @@ from amex.log import read_log
 from amex.log.layout import build_layout
 from amex.log.messages import viewer_schema_problems
 from amex.log.serve import LogServer
-from amex.log.urdf import resolve_mesh, viewer_urdf
+from amex.log.urdf import viewer_urdf
 from amex.methods import BUILTIN_METHODS, get_method
+from amex.robot.meshes import resolve_mesh
 
 AMEX_LOG = str(Path(sys.executable).parent / "amex-log")
 

@@ -261,3 +261,28 @@ def test_every_grid_goal_is_reachable_from_q0(name):
         assert max(r.position_error for r in results) < 1e-4, (name, task)
         with_axis = sum(r.axis_error < 1e-4 for r in results)
         assert with_axis >= (145 if name == "chain7" else 150), (name, task, with_axis)
+
+
+@pytest.mark.parametrize("kind", ["device", "fifo"])
+def test_a_collision_mesh_that_is_no_regular_file_is_refused_not_read(tmp_path, kind):
+    """/dev/zero or a FIFO as a collision mesh would hang the mesh loader: one line instead."""
+    import os
+
+    from amex.core.errors import ConfigError
+    from amex.robot.description import RobotConfig
+
+    mesh = Path("/dev/zero") if kind == "device" else tmp_path / "link.stl"
+    if kind == "fifo":
+        os.mkfifo(mesh)
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(
+        '<?xml version="1.0"?><robot name="arm"><link name="base"/>'
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/>'
+        '<axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="10" velocity="2"/></joint>'
+        '<link name="l1"><inertial><mass value="1"/><inertia ixx="0.01" ixy="0" ixz="0" '
+        'iyy="0.01" iyz="0" izz="0.01"/></inertial>'
+        f'<collision><geometry><mesh filename="{mesh}"/></geometry></collision></link></robot>'
+    )
+    config = RobotConfig(name="arm", urdf=str(urdf), joints=["j1"], tcp_frame="l1", q0=[0.0])
+    with pytest.raises(ConfigError, match=r"mesh='.*': a (device|FIFO); valid: a regular file"):
+        load_robot(config)
