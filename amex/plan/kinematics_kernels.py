@@ -151,7 +151,7 @@ def final_terms_joint(
     residual: np.ndarray,
     jac: np.ndarray,
 ) -> None:
-    """The final terms of :func:`amex.plan.optimizer._final_terms` with a joint final velocity.
+    """The final terms of :func:`~amex.plan.optimizer.final_terms.final_terms`, joint velocity.
 
     Fills ``Jz`` (3, n), ``jac`` (9 + n, 2n) and ``residual`` (9 + n,) but its last three
     entries, ``w[3] * (Jz @ v)``, which numpy adds (its matrix-vector product sums in an order of
@@ -269,7 +269,7 @@ def near_pairs(
 
     Returns ``(cap, obs, knot, r)`` with ``r = scale * max(1 - d / margin, 0)``, and writes ``r``
     into ``r_col`` (C, k, T) at the pairs: what ``np.nonzero`` of the transposed test and the
-    numpy expressions of :func:`amex.plan.optimizer._residuals` give.
+    numpy expressions of :func:`amex.plan.optimizer.residuals.residuals` give.
     """
     C, k, T = distance.shape
     count = 0

@@ -23,8 +23,8 @@ from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one
 from amex.methods import CR, METHODS, CRConfig
 from amex.methods.base import Observation
-from amex.plan.knots import resample_knots
-from amex.plan.optimizer import TrajectoryProblem, shift_warm_start, solve_trajectory
+from amex.plan.knots import resample_knots, shift_warm_start
+from amex.plan.optimizer import TrajectoryProblem, solve_trajectory
 from amex.sim.episode import run_episode
 from amex.sim.scenario import make_scenario
 

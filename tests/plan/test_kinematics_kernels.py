@@ -14,6 +14,7 @@ import pytest
 from amex.plan import optimizer as opt
 from amex.plan.batch_kinematics import BatchKinematics
 from amex.plan.kinematics_kernels import near_pairs
+from amex.plan.optimizer.final_terms import final_terms, final_terms_numpy
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
 from amex.robot import RobotConfig, load_robot
 
@@ -102,7 +103,7 @@ def test_compiled_final_terms_equal_numpy(arm):
         q_prev = robot.q0 + rng.normal(size=robot.nv)
         q_last = q_prev + rng.normal(scale=0.05, size=robot.nv)
         args = (robot.model, data, robot.tcp_frame_id, problem, q_prev, q_last)
-        for fast, slow in zip(opt._final_terms(*args), opt._final_terms_numpy(*args), strict=True):
+        for fast, slow in zip(final_terms(*args), final_terms_numpy(*args), strict=True):
             assert identical(fast, slow)
 
 

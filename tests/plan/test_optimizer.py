@@ -13,12 +13,12 @@ import pytest
 
 from amex.control.collision import CollisionModel
 from amex.core.errors import ConfigError, SolverError
+from amex.plan.knots import shift_warm_start
 from amex.plan.optimizer import (
     TrajectoryCosts,
     TrajectoryProblem,
     batch_kinematics,
     build_normal_equations,
-    shift_warm_start,
     solve_trajectory,
     trajectory_residuals,
 )
