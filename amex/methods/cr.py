@@ -71,6 +71,7 @@ from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.plan.knots import resample_knots, whole_knots
+from amex.plan.weights import CollisionWeights
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
     from amex.plan.optimizer import KnotFrames
@@ -79,19 +80,15 @@ if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
 
 
 @dataclass
-class CRConfig(MethodConfig):
-    """CR settings: the reference plan's costs plus collision, solver limits, horizon rules.
+class CRConfig(CollisionWeights, MethodConfig):
+    """CR settings: the reference plan's cost weights plus collision, solver limits, horizon rules.
 
-    ``pos`` and ``dir`` (inherited) are unused: CR sends joint targets, tracked with the shared
-    ``controller.joint`` gains (original 100/100).
+    The cost weights are :class:`~amex.plan.weights.CollisionWeights`' with three defaults of
+    CR's own (below). ``pos`` and ``dir`` (inherited) are unused: CR sends joint targets, tracked
+    with the shared ``controller.joint`` gains (original 100/100).
 
     Attributes:
-        acceleration: weight of the squared joint accelerations (as the reference plan).
-        final_position: weight of the final TCP position error [1/m^2] (original 1e4).
-        final_velocity: weight of the final joint velocity [s^2/rad^2] (original 1e3).
-        final_axis: weight of the final TCP z-axis error (original 1e4; carries scale^2, see the
-            module notes).
-        final_axis_velocity: weight of the final TCP z-axis rate [s^2] (original 1e3).
+        final_axis: weight of the final TCP z-axis error (original 1e4; carries scale^2).
         collision: weight of the collision proxy term (original 1; here 10).
         collision_margin: distance at which the collision term starts [m] (original 0.1 m; a
             length in original units, :mod:`amex.core.scaling`).
@@ -108,12 +105,12 @@ class CRConfig(MethodConfig):
     """
 
     name: str = "cr"
-    acceleration: float = 1.0  # [s^3/rad^2 per unit cost]
-    final_position: float = 1e4  # [1/m^2] original
-    final_velocity: float = 1e3  # [s^2/rad^2] original
-    final_axis: float = field(default=1e4, metadata=scaled(2))  # [-] original; module notes
-    final_axis_velocity: float = 1e3  # [s^2] original
-    collision: float = 10.0  # [-] original 1, see the module notes
+    # The axis error is dimensionless while position errors shrink with the scene, so CR's
+    # balance between them (goals beside an obstacle, where the axis must give way) carries
+    # scale^2. The reference plan's does not: its goal is reached with its axis, no obstacle in
+    # the way, and it keeps the original's weight (docs/planner.md, "CR's costs").
+    final_axis: float = field(default=1e4, metadata=scaled(2))  # [-] original
+    collision: float = 10.0  # [-] original 1 (docs/planner.md, "CR's costs")
     collision_margin: float = field(default=0.1, metadata=scaled(1))  # [m] original
     knot_dt: float = 0.01  # [s] the reference's (original)
     max_iterations: int = 20  # [-] original
@@ -196,16 +193,7 @@ class CR(Method):
             )
         if not (math.isfinite(c.tail_horizon) and c.tail_horizon >= 0.0):
             raise ConfigError.invalid("tail_horizon", c.tail_horizon, ">= 0 [s]")
-        self.costs = TrajectoryCosts(
-            acceleration=c.acceleration,
-            final_position=c.final_position,
-            final_velocity=c.final_velocity,
-            final_axis=c.final_axis,
-            final_axis_velocity=c.final_axis_velocity,
-            collision=c.collision,
-            collision_margin=c.collision_margin,
-            metric=metric,
-        )
+        self.costs = TrajectoryCosts.from_weights(c, metric)
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.reference_q = Q

@@ -16,6 +16,7 @@ from amex.plan.batch_kinematics import BatchKinematics
 from amex.plan.kinematics_kernels import near_pairs
 from amex.plan.optimizer.final_terms import final_terms, final_terms_numpy
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
+from amex.plan.weights import CollisionWeights
 from amex.robot import RobotConfig, load_robot
 
 ROBOTS = ("panda", "chain7", "ur5")
@@ -98,7 +99,7 @@ def test_compiled_final_terms_equal_numpy(arm):
             dt=0.01,
             goal_pos=rng.normal(size=3),
             goal_axis=np.array([0.0, 0.0, -1.0]),
-            costs=TrajectoryCosts(final_axis=float(rng.uniform(1.0, 1e4))),
+            costs=TrajectoryCosts(CollisionWeights(final_axis=float(rng.uniform(1.0, 1e4)))),
         )
         q_prev = robot.q0 + rng.normal(size=robot.nv)
         q_last = q_prev + rng.normal(scale=0.05, size=robot.nv)
@@ -119,7 +120,7 @@ def test_a_warm_start_with_the_last_frames_gives_the_same_solution(robot):
         goal_axis=np.array([0.0, 0.0, -1.0]),
         obstacles=centers,
         obstacle_radii=np.array([0.02]),
-        costs=TrajectoryCosts(collision=10.0),
+        costs=TrajectoryCosts(CollisionWeights(collision=10.0)),
     )
     first = opt.solve_trajectory(robot, problem, max_iterations=5)
     assert first.frames is not None

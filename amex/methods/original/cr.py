@@ -34,14 +34,11 @@ from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.cr import CRConfig, CRStatus
 from amex.plan.knots import resample_knots
+from amex.plan.weights import CollisionWeights
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
-
-#: The original's cost weights: final position, final TCP velocity, final axis, its rate,
-#: collision proxy.
-ORIGINAL_WEIGHTS = (1e4, 1e3, 1e4, 1e3, 1.0)
 
 
 class CROriginal(Method):
@@ -77,18 +74,8 @@ class CROriginal(Method):
             raise ConfigError.invalid("reference_q", Q.shape, f"finite (T + 1 >= 3, {robot.nv})")
         if not (math.isfinite(dt) and dt > 0.0):
             raise ConfigError.invalid("dt", dt, "> 0 [s]")
-        position, velocity, axis, axis_velocity, collision = ORIGINAL_WEIGHTS
-        self.costs = TrajectoryCosts(
-            acceleration=1.0,
-            final_position=position,
-            final_velocity=velocity,
-            final_axis=axis,
-            final_axis_velocity=axis_velocity,
-            collision=collision,
-            collision_margin=collision_margin,
-            metric=metric,
-            final_velocity_space="tcp",
-        )
+        weights = CollisionWeights(collision_margin=collision_margin)  # the original's weights
+        self.costs = TrajectoryCosts.from_weights(weights, metric, final_velocity_space="tcp")
         self.robot = robot
         self.reference_q = Q
         self.dt = float(dt)

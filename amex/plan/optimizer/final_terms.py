@@ -21,11 +21,15 @@ __all__ = ["final_terms", "final_terms_numpy", "final_weights"]
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
 
-@lru_cache(maxsize=16)
 def final_weights(costs: TrajectoryCosts) -> np.ndarray:
-    """Square roots of the four final weights (position, velocity, axis, axis rate)."""
-    c = costs
-    w = np.sqrt([c.final_position, c.final_velocity, c.final_axis, c.final_axis_velocity])
+    """Square roots of the four final weights (position, velocity, axis, axis rate); read-only."""
+    c = costs.weights
+    return _square_roots(c.final_position, c.final_velocity, c.final_axis, c.final_axis_velocity)
+
+
+@lru_cache(maxsize=16)
+def _square_roots(*weights: float) -> np.ndarray:
+    w = np.sqrt(list(weights))
     w.flags.writeable = False
     return w
 
@@ -101,7 +105,7 @@ def final_terms_numpy(
         ]
     )
     dzdot = -skew(z) @ domega + skew(Jw @ v) @ Jz
-    w = np.sqrt([c.final_position, c.final_velocity, c.final_axis, c.final_axis_velocity])
+    w = final_weights(c)
     eye = np.eye(n) / dt
     p_last = oMf.translation
     if c.final_velocity_space == "tcp":  # (p(q_T) - p(q_{T-1})) / dt, as the original's

@@ -88,7 +88,7 @@ def linearize(robot: RobotModel, problem: TrajectoryProblem, point: Point) -> Ev
     grad[:-1] -= 2.0 * r_acc[1:]
     grad[:-2] += r_acc[2:]
     grad *= 2.0 * s_acc
-    hessian = np.array(acceleration_band(n, T, float(dt), float(c.acceleration), c.metric))
+    hessian = np.array(acceleration_band(n, T, float(dt), float(c.weights.acceleration), c.metric))
 
     J_fin = point.final_jacobian
     m = J_fin.shape[1]
@@ -99,8 +99,8 @@ def linearize(robot: RobotModel, problem: TrajectoryProblem, point: Point) -> Ev
     if point.near is not None and point.poses is not None and point.dist is not None:
         kin = batch_kinematics(robot)
         cap, obs, knot = near = point.near
-        margin = c.collision_margin
-        s_col = math.sqrt(c.collision)
+        margin = c.weights.collision_margin
+        s_col = math.sqrt(c.weights.collision)
         r_near = r_col[near]
         J_col = (-s_col / margin) * kin.distance_gradients(
             point.poses, point.dist, problem.obstacles, near

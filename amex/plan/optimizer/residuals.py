@@ -101,7 +101,7 @@ def acceleration_scale(costs: TrajectoryCosts, dt: float) -> float | np.ndarray:
 
     ``sqrt(w dt) / dt^2``, times ``sqrt(H_jj)`` per joint with a joint metric (then shape (n,)).
     """
-    s_acc = math.sqrt(costs.acceleration * dt) / dt**2
+    s_acc = math.sqrt(costs.weights.acceleration * dt) / dt**2
     if costs.metric:
         return s_acc * np.sqrt(np.asarray(costs.metric, dtype=float))
     return s_acc
@@ -138,15 +138,15 @@ def residuals(
 
     r_col = np.zeros((len(robot.capsules), len(problem.obstacle_radii), T))
     poses = dist = near = None
-    if r_col.size and c.collision > 0.0:
-        kin = batch_kinematics(robot)
+    if r_col.size and c.weights.collision > 0.0:
+        kin, w = batch_kinematics(robot), c.weights
         poses = known.poses if known is not None else kin.forward(x)
         dist = known.distances(problem) if known is not None else None
         if dist is None:
             dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
         # the pairs with 1 - d / margin > -GUARD, sorted by knot, and their residuals
         cap, obs, knot, r_near = near_pairs(
-            dist.distance, float(c.collision_margin), GUARD, math.sqrt(c.collision), r_col
+            dist.distance, float(w.collision_margin), GUARD, math.sqrt(w.collision), r_col
         )
         if knot.size:
             near = (cap, obs, knot)
