@@ -112,7 +112,8 @@ class OperationalSpaceController:
             if collision is not None and collision.n_obstacles > 0
             else None
         )
-        self.q_rest = robot.q0.copy() if q_rest is None else np.asarray(q_rest, dtype=float)
+        self.q_rest = robot.q0.copy() if q_rest is None else np.array(q_rest, dtype=float)
+        self.q_rest.flags.writeable = False  # packed into the kernel's record below
         self._zeros = np.zeros(robot.nv)
         self._zero1 = np.zeros(1)
         self._lo = -robot.torque_limit
@@ -121,14 +122,13 @@ class OperationalSpaceController:
         self._zeros6 = np.zeros(6)
         self._zero_row = np.zeros((1, n))
         self._A, self._b = np.empty((n, n)), np.empty(n)  # kernel work space
-        g = gains
-        self._prm = kernels.pack_gains(g.pos, g.dir, g.joint, g.col, g.damping, g.reg, g.drift)
-        self._hdiag = self.regularizer() + g.damping.weight
-        no_damping = PD(0.0, 0.0, 0.0)
-        self._prm_joint = kernels.pack_gains(
-            g.pos, g.dir, g.joint, g.col, no_damping, g.reg, g.drift
+        g, H = gains, self.regularizer()
+        tasks = (g.pos, g.dir, g.joint, g.col)
+        self._params = kernels.pack_params(
+            *tasks, g.damping, g.drift, H + g.damping.weight, self.q_rest
         )
-        self._hdiag_joint = self.regularizer()
+        no_damping = PD(0.0, 0.0, 0.0)  # the joint task alone (module notes)
+        self._params_alone = kernels.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
 
     def regularizer(self) -> np.ndarray:
         """The diagonal of H in Eq. 4, shape (n,)."""
@@ -140,35 +140,30 @@ class OperationalSpaceController:
 
     def _kernel_args(self, state: RobotState, command: Command) -> tuple:
         """The arguments of the compiled kernels after ``(A, b[, x])`` (module :mod:`.kernels`)."""
-        y, q = command.y, command.q
-        task_on = y is not None
-        joint_on = q is not None
-        ty = y if task_on else self._zeros6
-        tyd = command.yd if task_on and command.yd is not None else self._zeros6
-        tq = q if joint_on else self._zeros
-        tqd = command.qd if joint_on and command.qd is not None else self._zeros
-        alone = joint_on and self.gains.joint_only  # the joint task alone (module notes)
+        ty = tyd = tq = tqd = None  # None: the task is off
+        if command.y is not None:
+            ty, tyd = command.y, command.yd if command.yd is not None else self._zeros6
+        if command.q is not None:
+            tq, tqd = command.q, command.qd if command.qd is not None else self._zeros
+        alone = tq is not None and self.gains.joint_only  # the joint task alone (module notes)
         col_phi, Jc = 0.0, self._zero_row
         if self.col_map is not None and not alone:
             terms = self.col_map.evaluate(state)
             col_phi, Jc = float(terms.phi[0]), terms.J
+        params = self._params_alone if alone else self._params
         return (
             state.J,
             state.v,
             state.q,
             state.H,
             state.acc_drift,
-            task_on,
             ty,
             tyd,
-            joint_on,
             tq,
             tqd,
-            self.q_rest,
             col_phi,
             Jc,
-            self._prm_joint if alone else self._prm,
-            self._hdiag_joint if alone else self._hdiag,
+            params,
         )
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
