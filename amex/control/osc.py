@@ -92,7 +92,8 @@ class OperationalSpaceController:
         robot: the controlled arm (its Pinocchio model is the controller's model).
         gains: task gains and weights.
         collision: arm-obstacle distance model, or ``None`` for a scene without obstacles.
-        q_rest: posture the damping task pulls towards (only if ``gains.damping.kp > 0``).
+        q_rest: posture the damping task pulls towards (only if ``gains.damping.kp > 0``);
+            copied, read-only.
     """
 
     def __init__(
@@ -169,13 +170,9 @@ class OperationalSpaceController:
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
 
-        This runs at 1 kHz, where every numpy call costs about a microsecond, so the system is
-        assembled by one compiled call (:func:`amex.control.kernels.normal_equations`). The
-        position and axis tasks are folded into ``A = J^T W J`` and ``b = J^T rho`` with the TCP
-        Jacobian J (6 x 7), ``W = diag(c_pos I, c_axis (I - z z^T))`` (the axis task's rows are
-        ``-[z]x J_w``) and rho the weighted Eq. 6 targets minus the drift; the damping task has
-        Jacobian I, so it adds ``c I`` to A and ``c (kp (q_rest - q) - kd v)`` to b directly.
-        :meth:`build_objective_reference` assembles the same system map by map, for tests.
+        Assembled by one compiled call (:func:`amex.control.kernels.normal_equations`, in the
+        fused form of docs/controller.md); :meth:`build_objective_reference` assembles the same
+        system map by map, for tests.
         """
         n = self.robot.nv
         A, b = np.empty((n, n)), np.empty(n)

@@ -24,7 +24,7 @@ from amex.plan.optimizer import (
 )
 from amex.plan.weights import CollisionWeights
 
-GOAL_POS = np.array([0.384, 0.229, 0.461])  # reference goal (DESIGN.md, scale 0.2) [m]
+GOAL_POS = np.array([0.384, 0.229, 0.461])  # the Panda's reference goal (scale 0.2) [m]
 GOAL_AXIS = np.array([0.0, 0.0, -1.0])
 START_TCP = np.array([0.307, 0.0, 0.487])  # TCP at q0 [m]
 STEP = 1e-6  # finite-difference step [rad]; revolute joints, so pin.integrate is q + dq
