@@ -1,88 +1,96 @@
 """Compiled (Numba) inner loop of the operational-space controller: Eq. 4-6 in one call.
 
-At 1 kHz every numpy call costs about a microsecond of interpreter and dispatch overhead, and
-the normal equations of Eq. 4 took about 25 of them (22 us of a 50 us step). Here they are
-assembled and solved in a single compiled call (~2 us): one loop nest over the 6 x 7 TCP
-Jacobian, a 7 x 7 Cholesky factorization and two triangular solves. The arithmetic is exactly the
-fused form documented in :meth:`amex.control.osc.OperationalSpaceController.build_objective`;
-:meth:`~amex.control.osc.OperationalSpaceController.build_objective_reference` (numpy, task map
-by task map) is the test oracle. Compiled without ``fastmath``: IEEE operations in program
-order, so results are bit-for-bit reproducible across runs and worker counts.
-
-The parameter vector ``prm`` (built once per controller, :func:`pack_gains`) holds, in order:
-
-======  =================================================================
-index   meaning
-======  =================================================================
-0-2     position task Kp, Kd, weight (Eq. 6, first row of Eq. 5)
-3-5     axis task Kp, Kd, weight (second row)
-6       (unused: the diagonal is the ``hdiag`` argument)
-7       ``-weight * Kd`` of the damping task (times v)
-8       ``weight * Kp`` of the damping task (times q_rest - q)
-9-11    joint task Kp, Kd, weight (CR's joint targets)
-12-14   collision task Kp, Kd, weight (third row; target 0 penetration)
-15      1: subtract the drift ``J_dot v`` of the TCP tasks; 0: leave it out (the original)
-======  =================================================================
-
-``hdiag`` (n,) is the diagonal of the regularizer ``H`` of Eq. 4 plus the damping task's weight
-(its Jacobian is I).
+:func:`normal_equations` assembles ``A q_ddot = b`` of :mod:`amex.control.osc` (the weighted
+tasks of Eq. 5 with the PD targets of Eq. 6 and the regularizer H of Eq. 4) and
+:func:`cholesky_solve` solves it. The controller's constants travel as one record with named
+fields (:func:`params_dtype`, :func:`pack_params`). Compiled without ``fastmath``: IEEE
+operations in program order, so results are bit-for-bit reproducible across runs and worker
+counts. Why one compiled call, and what it costs: docs/controller.md.
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
+from typing import Any
+
 import numba
 import numpy as np
 
-N_PARAMS = 16
+from amex.core.types import PD
+
+_F8 = np.float64
 
 
-def pack_gains(pos, dir_, joint, col, damping, reg: float, drift: bool = True) -> np.ndarray:
-    """The ``prm`` vector of the module table from the controller's PD gains."""
-    return np.array(
-        [
-            pos.kp,
-            pos.kd,
-            pos.weight,
-            dir_.kp,
-            dir_.kd,
-            dir_.weight,
-            reg + damping.weight,
-            -damping.weight * damping.kd,
-            damping.weight * damping.kp,
-            joint.kp,
-            joint.kd,
-            joint.weight,
-            col.kp,
-            col.kd,
-            col.weight,
-            1.0 if drift else 0.0,
-        ],
-        dtype=np.float64,
-    )
+@lru_cache(maxsize=8)
+def params_dtype(n: int) -> np.dtype:
+    """The record of an n-joint controller's constants (:func:`pack_params`), C-aligned."""
+    fields = [
+        ("pos_kp", _F8),  # position task (Eq. 6, first row of Eq. 5)
+        ("pos_kd", _F8),
+        ("pos_weight", _F8),
+        ("axis_kp", _F8),  # axis task (second row)
+        ("axis_kd", _F8),
+        ("axis_weight", _F8),
+        ("damping_velocity", _F8),  # -weight * Kd of the damping task (times v)
+        ("damping_posture", _F8),  # weight * Kp of the damping task (times q_rest - q)
+        ("joint_kp", _F8),  # joint task (CR's joint targets)
+        ("joint_kd", _F8),
+        ("joint_weight", _F8),
+        ("col_kp", _F8),  # collision task (third row; target 0 penetration)
+        ("col_kd", _F8),
+        ("col_weight", _F8),
+        ("drift", np.bool_),  # subtract the drift J_dot v of the TCP tasks (the original: no)
+        ("hdiag", _F8, (n,)),  # diagonal of H (Eq. 4) plus the damping task's weight
+        ("q_rest", _F8, (n,)),  # posture of the damping task [rad]
+    ]
+    return np.dtype(fields, align=True)
+
+
+def pack_params(
+    pos: PD,
+    dir_: PD,
+    joint: PD,
+    col: PD,
+    damping: PD,
+    drift: bool,
+    hdiag: np.ndarray,
+    q_rest: np.ndarray,
+) -> np.ndarray:
+    """The record of the controller's gains, regularizer diagonal and rest posture, shape (1,)."""
+    params = np.zeros(1, dtype=params_dtype(len(hdiag)))
+    p = params[0]
+    p["pos_kp"], p["pos_kd"], p["pos_weight"] = pos.kp, pos.kd, pos.weight
+    p["axis_kp"], p["axis_kd"], p["axis_weight"] = dir_.kp, dir_.kd, dir_.weight
+    p["damping_velocity"] = -damping.weight * damping.kd
+    p["damping_posture"] = damping.weight * damping.kp
+    p["joint_kp"], p["joint_kd"], p["joint_weight"] = joint.kp, joint.kd, joint.weight
+    p["col_kp"], p["col_kd"], p["col_weight"] = col.kp, col.kd, col.weight
+    p["drift"] = drift
+    p["hdiag"], p["q_rest"] = hdiag, q_rest
+    return params
 
 
 @numba.njit(cache=True)
-def normal_equations(  # a flat signature keeps the compiled call cheap
+def normal_equations(  # per-step inputs as they come (nothing copied), constants in one record
     A: np.ndarray,
     b: np.ndarray,
     J: np.ndarray,
     v: np.ndarray,
     q: np.ndarray,
-    H: np.ndarray,
+    tcp_pose: np.ndarray,
     drift: np.ndarray,
-    task_on: bool,
-    ty: np.ndarray,
-    tyd: np.ndarray,
-    joint_on: bool,
-    tq: np.ndarray,
-    tqd: np.ndarray,
-    q_rest: np.ndarray,
+    ty: np.ndarray | None,
+    tyd: np.ndarray | None,
+    tq: np.ndarray | None,
+    tqd: np.ndarray | None,
     col_phi: float,
     Jc: np.ndarray,
-    prm: np.ndarray,
-    hdiag: np.ndarray,
+    params: np.ndarray,
 ) -> None:
     """Fill ``A`` (n x n) and ``b`` (n,) with the normal equations of Eq. 4-6, in place.
+
+    A target of None leaves its task out; Numba compiles each combination apart, so the test
+    costs nothing at run time.
 
     Args:
         A: output (n, n), overwritten.
@@ -90,98 +98,141 @@ def normal_equations(  # a flat signature keeps the compiled call cheap
         J: TCP Jacobian (6, n), LOCAL_WORLD_ALIGNED rows (linear, angular).
         v: joint velocities (n,) [rad/s].
         q: joint positions (n,) [rad].
-        H: TCP pose (4, 4); column 3 is the position, column 2 the z-axis.
+        tcp_pose: TCP pose (4, 4); column 3 is the position, column 2 the z-axis.
         drift: TCP classical acceleration at q_ddot = 0 (6,) (``J_dot v``).
-        task_on: whether the position/axis tasks are active (a task-space command).
-        ty: task target y* (6,) (position, axis); read when ``task_on``.
-        tyd: its velocity y_dot* (6,); read when ``task_on``.
-        joint_on: whether the joint task is active (a joint-space command).
-        tq: joint target q* (n,); read when ``joint_on``.
-        tqd: its velocity q_dot* (n,); read when ``joint_on``.
-        q_rest: posture of the damping task (n,).
+        ty: task target y* (6,) (position, axis), or None: no position and axis tasks.
+        tyd: its velocity y_dot* (6,) (None with ``ty``).
+        tq: joint target q* (n,), or None: no joint task.
+        tqd: its velocity q_dot* (n,) (None with ``tq``).
         col_phi: collision penetration phi_col (the task is active when > 0).
         Jc: its Jacobian (1, n).
-        prm: gains (module table).
-        hdiag: diagonal of H plus the damping weight (n,).
+        params: the controller's constants, a :func:`params_dtype` record, shape (1,).
     """
+    p = params[0]
     n = v.shape[0]
     for i in range(n):
         for j in range(n):
             A[i, j] = 0.0
-        A[i, i] = hdiag[i]
-        b[i] = prm[7] * v[i]
-    if task_on:
-        kp, kd, wp = prm[0], prm[1], prm[2]
-        kpa, kda, wa = prm[3], prm[4], prm[5]
-        tw = np.empty(6)
-        for r in range(6):
-            acc = 0.0
-            for j in range(n):
-                acc += J[r, j] * v[j]
-            tw[r] = acc
-        px, py, pz = H[0, 3], H[1, 3], H[2, 3]
-        zx, zy, zz = H[0, 2], H[1, 2], H[2, 2]
-        wx, wy, wz = tw[3], tw[4], tw[5]
-        bx, by, bz = drift[3], drift[4], drift[5]
-        # z_dot = w x z and its drift z_ddot|_(q_ddot=0) = alpha x z + w x z_dot (AxisMap)
-        dx, dy, dz = wy * zz - wz * zy, wz * zx - wx * zz, wx * zy - wy * zx
-        ex = by * zz - bz * zy + wy * dz - wz * dy
-        ey = bz * zx - bx * zz + wz * dx - wx * dz
-        ez = bx * zy - by * zx + wx * dy - wy * dx
-        d0, d1, d2 = drift[0], drift[1], drift[2]
-        if prm[15] == 0.0:  # the original: no drift term
-            ex = ey = ez = d0 = d1 = d2 = 0.0
-        # Eq. 6 minus the drift: the task accelerations the joint accelerations must produce
-        rx = wp * (kp * (ty[0] - px) + kd * (tyd[0] - tw[0]) - d0)
-        ry = wp * (kp * (ty[1] - py) + kd * (tyd[1] - tw[1]) - d1)
-        rz = wp * (kp * (ty[2] - pz) + kd * (tyd[2] - tw[2]) - d2)
-        sx = kpa * (ty[3] - zx) + kda * (tyd[3] - dx) - ex
-        sy = kpa * (ty[4] - zy) + kda * (tyd[4] - dy) - ey
-        sz = kpa * (ty[5] - zz) + kda * (tyd[5] - dz) - ez
-        # axis rows T_a = -[z]x J_w: T_a^T s = J_w^T (z x s), T_a^T T_a = J_w^T (I - zz^T) J_w
-        rho = np.empty(6)
-        rho[0], rho[1], rho[2] = rx, ry, rz
-        rho[3] = wa * (zy * sz - zz * sy)
-        rho[4] = wa * (zz * sx - zx * sz)
-        rho[5] = wa * (zx * sy - zy * sx)
-        W = np.empty((3, 3))
-        W[0, 0], W[1, 1], W[2, 2] = wa * (1.0 - zx * zx), wa * (1.0 - zy * zy), wa * (1.0 - zz * zz)
-        W[0, 1] = W[1, 0] = -wa * zx * zy
-        W[0, 2] = W[2, 0] = -wa * zx * zz
-        W[1, 2] = W[2, 1] = -wa * zy * zz
-        WJ = np.empty((3, n))  # axis block W_a J_w
-        for r in range(3):
-            for j in range(n):
-                WJ[r, j] = W[r, 0] * J[3, j] + W[r, 1] * J[4, j] + W[r, 2] * J[5, j]
+        A[i, i] = p.hdiag[i]
+        b[i] = p.damping_velocity * v[i]
+    if ty is not None and tyd is not None:
+        _add_tcp_tasks(A, b, J, v, tcp_pose, drift, ty, tyd, p)
+    if p.damping_posture != 0.0:
         for i in range(n):
-            for j in range(i + 1):
-                acc = wp * (J[0, i] * J[0, j] + J[1, i] * J[1, j] + J[2, i] * J[2, j])
-                acc += J[3, i] * WJ[0, j] + J[4, i] * WJ[1, j] + J[5, i] * WJ[2, j]
-                A[i, j] += acc
-                if j != i:
-                    A[j, i] += acc
-            acc = 0.0
-            for r in range(6):
-                acc += J[r, i] * rho[r]
-            b[i] += acc
-    if prm[8] != 0.0:
-        for i in range(n):
-            b[i] += prm[8] * (q_rest[i] - q[i])
-    if joint_on:
-        kp, kd, c = prm[9], prm[10], prm[11]
+            b[i] += p.damping_posture * (p.q_rest[i] - q[i])
+    if tq is not None and tqd is not None:
+        c = p.joint_weight
         for i in range(n):
             A[i, i] += c
-            b[i] += c * (kp * (tq[i] - q[i]) + kd * (tqd[i] - v[i]))
+            b[i] += c * (p.joint_kp * (tq[i] - q[i]) + p.joint_kd * (tqd[i] - v[i]))
     if col_phi > 0.0:
-        kp, kd, c = prm[12], prm[13], prm[14]
-        phid = 0.0
+        _add_collision_task(A, b, v, col_phi, Jc, p)
+
+
+@numba.njit(cache=True)
+def _tcp_targets(
+    J: np.ndarray,
+    v: np.ndarray,
+    tcp_pose: np.ndarray,
+    drift: np.ndarray,
+    ty: np.ndarray,
+    tyd: np.ndarray,
+    p: Any,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``rho`` (6,) and the axis block ``W_a`` (3, 3) of the position and axis tasks.
+
+    ``rho``: the weighted Eq. 6 targets minus the drift, the axis rows mapped back through
+    ``T_a = -[z]x J_w`` (``T_a^T s = J_w^T (z x s)``); ``W_a = c_axis (I - z z^T)``, so that
+    ``T_a^T T_a = J_w^T W_a J_w / c_axis``.
+    """
+    n = v.shape[0]
+    kp, kd, wp = p.pos_kp, p.pos_kd, p.pos_weight
+    kpa, kda, wa = p.axis_kp, p.axis_kd, p.axis_weight
+    tw = np.empty(6)
+    for r in range(6):
+        acc = 0.0
         for j in range(n):
-            phid += Jc[0, j] * v[j]
-        target = kp * (0.0 - col_phi) + kd * (0.0 - phid)  # drift neglected (CollisionMap)
-        for i in range(n):
-            for j in range(n):
-                A[i, j] += c * Jc[0, i] * Jc[0, j]
-            b[i] += c * Jc[0, i] * target
+            acc += J[r, j] * v[j]
+        tw[r] = acc
+    px, py, pz = tcp_pose[0, 3], tcp_pose[1, 3], tcp_pose[2, 3]
+    zx, zy, zz = tcp_pose[0, 2], tcp_pose[1, 2], tcp_pose[2, 2]
+    wx, wy, wz = tw[3], tw[4], tw[5]
+    bx, by, bz = drift[3], drift[4], drift[5]
+    # z_dot = w x z and its drift z_ddot|_(q_ddot=0) = alpha x z + w x z_dot (AxisMap)
+    dx, dy, dz = wy * zz - wz * zy, wz * zx - wx * zz, wx * zy - wy * zx
+    ex = by * zz - bz * zy + wy * dz - wz * dy
+    ey = bz * zx - bx * zz + wz * dx - wx * dz
+    ez = bx * zy - by * zx + wx * dy - wy * dx
+    d0, d1, d2 = drift[0], drift[1], drift[2]
+    if not p.drift:  # the original: no drift term
+        ex = ey = ez = d0 = d1 = d2 = 0.0
+    # Eq. 6 minus the drift: the task accelerations the joint accelerations must produce
+    rho = np.empty(6)
+    rho[0] = wp * (kp * (ty[0] - px) + kd * (tyd[0] - tw[0]) - d0)
+    rho[1] = wp * (kp * (ty[1] - py) + kd * (tyd[1] - tw[1]) - d1)
+    rho[2] = wp * (kp * (ty[2] - pz) + kd * (tyd[2] - tw[2]) - d2)
+    sx = kpa * (ty[3] - zx) + kda * (tyd[3] - dx) - ex
+    sy = kpa * (ty[4] - zy) + kda * (tyd[4] - dy) - ey
+    sz = kpa * (ty[5] - zz) + kda * (tyd[5] - dz) - ez
+    rho[3] = wa * (zy * sz - zz * sy)
+    rho[4] = wa * (zz * sx - zx * sz)
+    rho[5] = wa * (zx * sy - zy * sx)
+    W = np.empty((3, 3))
+    W[0, 0], W[1, 1], W[2, 2] = wa * (1.0 - zx * zx), wa * (1.0 - zy * zy), wa * (1.0 - zz * zz)
+    W[0, 1] = W[1, 0] = -wa * zx * zy
+    W[0, 2] = W[2, 0] = -wa * zx * zz
+    W[1, 2] = W[2, 1] = -wa * zy * zz
+    return rho, W
+
+
+@numba.njit(cache=True)
+def _add_tcp_tasks(
+    A: np.ndarray,
+    b: np.ndarray,
+    J: np.ndarray,
+    v: np.ndarray,
+    tcp_pose: np.ndarray,
+    drift: np.ndarray,
+    ty: np.ndarray,
+    tyd: np.ndarray,
+    p: Any,
+) -> None:
+    """Add the position and axis tasks, ``A += J^T diag(c_pos I, W_a) J``, ``b += J^T rho``."""
+    n = v.shape[0]
+    wp = p.pos_weight
+    rho, W = _tcp_targets(J, v, tcp_pose, drift, ty, tyd, p)
+    WJ = np.empty((3, n))  # axis block W_a J_w
+    for r in range(3):
+        for j in range(n):
+            WJ[r, j] = W[r, 0] * J[3, j] + W[r, 1] * J[4, j] + W[r, 2] * J[5, j]
+    for i in range(n):
+        for j in range(i + 1):
+            acc = wp * (J[0, i] * J[0, j] + J[1, i] * J[1, j] + J[2, i] * J[2, j])
+            acc += J[3, i] * WJ[0, j] + J[4, i] * WJ[1, j] + J[5, i] * WJ[2, j]
+            A[i, j] += acc
+            if j != i:
+                A[j, i] += acc
+        acc = 0.0
+        for r in range(6):
+            acc += J[r, i] * rho[r]
+        b[i] += acc
+
+
+@numba.njit(cache=True)
+def _add_collision_task(
+    A: np.ndarray, b: np.ndarray, v: np.ndarray, col_phi: float, Jc: np.ndarray, p: Any
+) -> None:
+    """Add the collision task: target 0 penetration, drift neglected (CollisionMap)."""
+    n = v.shape[0]
+    c = p.col_weight
+    phid = 0.0
+    for j in range(n):
+        phid += Jc[0, j] * v[j]
+    target = p.col_kp * (0.0 - col_phi) + p.col_kd * (0.0 - phid)
+    for i in range(n):
+        for j in range(n):
+            A[i, j] += c * Jc[0, i] * Jc[0, j]
+        b[i] += c * Jc[0, i] * target
 
 
 @numba.njit(cache=True)

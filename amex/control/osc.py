@@ -92,7 +92,8 @@ class OperationalSpaceController:
         robot: the controlled arm (its Pinocchio model is the controller's model).
         gains: task gains and weights.
         collision: arm-obstacle distance model, or ``None`` for a scene without obstacles.
-        q_rest: posture the damping task pulls towards (only if ``gains.damping.kp > 0``).
+        q_rest: posture the damping task pulls towards (only if ``gains.damping.kp > 0``);
+            copied, read-only.
     """
 
     def __init__(
@@ -112,7 +113,8 @@ class OperationalSpaceController:
             if collision is not None and collision.n_obstacles > 0
             else None
         )
-        self.q_rest = robot.q0.copy() if q_rest is None else np.asarray(q_rest, dtype=float)
+        self.q_rest = robot.q0.copy() if q_rest is None else np.array(q_rest, dtype=float)
+        self.q_rest.flags.writeable = False  # packed into the kernel's record below
         self._zeros = np.zeros(robot.nv)
         self._zero1 = np.zeros(1)
         self._lo = -robot.torque_limit
@@ -121,14 +123,13 @@ class OperationalSpaceController:
         self._zeros6 = np.zeros(6)
         self._zero_row = np.zeros((1, n))
         self._A, self._b = np.empty((n, n)), np.empty(n)  # kernel work space
-        g = gains
-        self._prm = kernels.pack_gains(g.pos, g.dir, g.joint, g.col, g.damping, g.reg, g.drift)
-        self._hdiag = self.regularizer() + g.damping.weight
-        no_damping = PD(0.0, 0.0, 0.0)
-        self._prm_joint = kernels.pack_gains(
-            g.pos, g.dir, g.joint, g.col, no_damping, g.reg, g.drift
+        g, H = gains, self.regularizer()
+        tasks = (g.pos, g.dir, g.joint, g.col)
+        self._params = kernels.pack_params(
+            *tasks, g.damping, g.drift, H + g.damping.weight, self.q_rest
         )
-        self._hdiag_joint = self.regularizer()
+        no_damping = PD(0.0, 0.0, 0.0)  # the joint task alone (module notes)
+        self._params_alone = kernels.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
 
     def regularizer(self) -> np.ndarray:
         """The diagonal of H in Eq. 4, shape (n,)."""
@@ -140,47 +141,38 @@ class OperationalSpaceController:
 
     def _kernel_args(self, state: RobotState, command: Command) -> tuple:
         """The arguments of the compiled kernels after ``(A, b[, x])`` (module :mod:`.kernels`)."""
-        y, q = command.y, command.q
-        task_on = y is not None
-        joint_on = q is not None
-        ty = y if task_on else self._zeros6
-        tyd = command.yd if task_on and command.yd is not None else self._zeros6
-        tq = q if joint_on else self._zeros
-        tqd = command.qd if joint_on and command.qd is not None else self._zeros
-        alone = joint_on and self.gains.joint_only  # the joint task alone (module notes)
+        ty = tyd = tq = tqd = None  # None: the task is off
+        if command.y is not None:
+            ty, tyd = command.y, command.yd if command.yd is not None else self._zeros6
+        if command.q is not None:
+            tq, tqd = command.q, command.qd if command.qd is not None else self._zeros
+        alone = tq is not None and self.gains.joint_only  # the joint task alone (module notes)
         col_phi, Jc = 0.0, self._zero_row
         if self.col_map is not None and not alone:
             terms = self.col_map.evaluate(state)
             col_phi, Jc = float(terms.phi[0]), terms.J
+        params = self._params_alone if alone else self._params
         return (
             state.J,
             state.v,
             state.q,
             state.H,
             state.acc_drift,
-            task_on,
             ty,
             tyd,
-            joint_on,
             tq,
             tqd,
-            self.q_rest,
             col_phi,
             Jc,
-            self._prm_joint if alone else self._prm,
-            self._hdiag_joint if alone else self._hdiag,
+            params,
         )
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
 
-        This runs at 1 kHz, where every numpy call costs about a microsecond, so the system is
-        assembled by one compiled call (:func:`amex.control.kernels.normal_equations`). The
-        position and axis tasks are folded into ``A = J^T W J`` and ``b = J^T rho`` with the TCP
-        Jacobian J (6 x 7), ``W = diag(c_pos I, c_axis (I - z z^T))`` (the axis task's rows are
-        ``-[z]x J_w``) and rho the weighted Eq. 6 targets minus the drift; the damping task has
-        Jacobian I, so it adds ``c I`` to A and ``c (kp (q_rest - q) - kd v)`` to b directly.
-        :meth:`build_objective_reference` assembles the same system map by map, for tests.
+        Assembled by one compiled call (:func:`amex.control.kernels.normal_equations`, in the
+        fused form of docs/controller.md); :meth:`build_objective_reference` assembles the same
+        system map by map, for tests.
         """
         n = self.robot.nv
         A, b = np.empty((n, n)), np.empty(n)

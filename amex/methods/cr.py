@@ -1,60 +1,12 @@
 """Continuous replanning (CR, the paper's Section IV-A): trajectory optimization every outer step.
 
-Every outer step re-solves the reference plan's problem (:mod:`amex.plan.optimizer`: squared
-joint accelerations, final TCP position, axis and their velocities, plus a collision term) from
-the measured state ``(q, q_dot)`` to the current goal ``(g, axis)`` among the current obstacles,
-warm-started from the previous solution shifted by the time elapsed, and sends a joint target to
-the inner controller (a joint PD task with the shared ``controller.joint`` gains, original
-100/100). DESIGN.md, "The original experiment", CR: shrinking horizon ending at T_ref, warm start
-shifted by one step, <= 20 Newton iterations, collision margin 0.1 m (x scale 0.2 = 0.02 m) at
-weight 1, no replanning below 2 steps.
-
-Horizon. At time t the knots are ``t + k dt_knot``, ``k = 0..T`` with ``T = round((T_ref - t) /
-dt_knot)`` (the original's shrinking horizon: the plan always ends at T_ref). Knot 0 is the
-measured ``q`` and ``q_-1 = q - dt_knot q_dot``, so the plan starts with the measured velocity.
-
-Warm start. The previous solution (or, at the first step, the reference plan's joint trajectory)
-resampled at the new knot times, clamped to its last knot: with ``dt_knot`` equal to the outer
-period this is :func:`~amex.plan.optimizer.shift_warm_start`, the original's shift by one step.
-
-Command. The plan's state at the middle of the outer period the command is held for: position
-``q* = q(t + dt/2)`` and velocity ``q_dot* = (q(t + dt) - q(t)) / dt``, exact for the knots'
-piecewise-linear interpolation (with dt_knot = dt: ``(q_0 + q_1) / 2`` and ``(q_1 - q_0) / dt``).
-A held target is a zero-order hold: the midpoint keeps the joint PD's error centred on the
-plan over the period. The next knot ``q_1`` with the plan's velocity there (the obvious choice)
-leads the robot by half a period: with the original gains (Kp = Kd = 100) the PD then pushes
-at the start of every period and brakes at its end, a ripple of about ``q_dot + q_ddot`` per
-period. Measured sums of squared accelerations: Task 0 87 -> 66, Task 1 (10 environments)
-157 -> 118; the arrival is ~0.2 s later. No task-space target is sent (``Command.y`` is None).
-
-End of the horizon. While ``T < min_steps`` (original: 2) and ``t < T_ref``, CR stops
-replanning and holds the last solution's final knot at zero velocity (the original's behaviour,
-which it kept for ever). From ``t >= T_ref`` on (the episode still runs: the goal is not reached,
-from a lag, a goal that moved late or an obstacle in the way) CR keeps replanning on a receding
-horizon of ``tail_horizon`` seconds (default 0.5 s) towards the current goal among the current
-obstacles, and sends that plan's final knot at zero velocity: the original's hold, with a final
-knot that follows the goal and the obstacles. Sending the receding plan's next knot instead
-(a model-predictive approach) was measured worse on Task 3, where about 10 of the 150 goals
-are blocked by the obstacle or out of reach and the arm stops at the margin: the next knot is
-always close to the arm, so the inner collision task pushed it 1-2 cm further from the goal
-than the hold does (success 0.920 against 0.933). ``tail_horizon = 0`` holds the last final
-knot for ever (the original).
-
-Costs: two deviations from the original, both measured on Task 3. (1) The inner controller's
-collision task (Kp 2500 at weight 10) enforces the 0.02 m margin almost as a hard constraint;
-at weight 1 the plan's final knot sits inside the margin wherever the goal is close to the
-obstacle, the controller pushes the arm out and it ends 1-2 cm further from the goal than
-planned. Weight 10 keeps plan and controller in agreement. (2) The axis error is dimensionless
-while position errors shrink with the scene (scale 0.2), so the original's balance between them
-needs the axis weight times scale^2 (1e4 -> 400; the position weight stays the reference plan's
-1e4); the top-down axis may then tilt a little to reach a goal beside the obstacle. Task 3
-success 0.933 with the original weights, 0.960 with these (150 environments).
-
-Real-time mode. ``realtime=False`` iterates until converged (relative cost decrease or step
-below ``tolerance``), at most ``max_iterations`` (the original: 20) per step. ``realtime=True``
-caps every step at ``realtime_iterations`` (e.g. 2): a real-time iteration scheme, where the
-warm start carries the unfinished optimization over to the next step and a step's cost is
-bounded by a fixed number of banded solves.
+Every outer step re-solves the reference plan's problem (:mod:`amex.plan.optimizer`) from the
+measured state ``(q, q_dot)`` to the current goal among the current obstacles, on the shrinking
+horizon ``T = round((T_ref - t) / dt_knot)`` knots, warm-started from the previous solution
+shifted by the time elapsed, and sends the joint target ``q* = q(t + dt/2)``,
+``q_dot* = (q(t + dt) - q(t)) / dt`` to the inner controller's joint task. Below ``min_steps``
+knots it holds the final knot; after T_ref it replans on a receding ``tail_horizon``. Horizon,
+command, costs and their measurements: docs/planner.md.
 """
 
 from __future__ import annotations
@@ -71,6 +23,7 @@ from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.plan.knots import resample_knots, whole_knots
+from amex.plan.weights import CollisionWeights
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
     from amex.plan.optimizer import KnotFrames
@@ -79,19 +32,15 @@ if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
 
 
 @dataclass
-class CRConfig(MethodConfig):
-    """CR settings: the reference plan's costs plus collision, solver limits, horizon rules.
+class CRConfig(CollisionWeights, MethodConfig):
+    """CR settings: the reference plan's cost weights plus collision, solver limits, horizon rules.
 
-    ``pos`` and ``dir`` (inherited) are unused: CR sends joint targets, tracked with the shared
-    ``controller.joint`` gains (original 100/100).
+    The cost weights are :class:`~amex.plan.weights.CollisionWeights`' with three defaults of
+    CR's own (below). ``pos`` and ``dir`` (inherited) are unused: CR sends joint targets, tracked
+    with the shared ``controller.joint`` gains (original 100/100).
 
     Attributes:
-        acceleration: weight of the squared joint accelerations (as the reference plan).
-        final_position: weight of the final TCP position error [1/m^2] (original 1e4).
-        final_velocity: weight of the final joint velocity [s^2/rad^2] (original 1e3).
-        final_axis: weight of the final TCP z-axis error (original 1e4; carries scale^2, see the
-            module notes).
-        final_axis_velocity: weight of the final TCP z-axis rate [s^2] (original 1e3).
+        final_axis: weight of the final TCP z-axis error (original 1e4; carries scale^2).
         collision: weight of the collision proxy term (original 1; here 10).
         collision_margin: distance at which the collision term starts [m] (original 0.1 m; a
             length in original units, :mod:`amex.core.scaling`).
@@ -108,12 +57,12 @@ class CRConfig(MethodConfig):
     """
 
     name: str = "cr"
-    acceleration: float = 1.0  # [s^3/rad^2 per unit cost]
-    final_position: float = 1e4  # [1/m^2] original
-    final_velocity: float = 1e3  # [s^2/rad^2] original
-    final_axis: float = field(default=1e4, metadata=scaled(2))  # [-] original; module notes
-    final_axis_velocity: float = 1e3  # [s^2] original
-    collision: float = 10.0  # [-] original 1, see the module notes
+    # The axis error is dimensionless while position errors shrink with the scene, so CR's
+    # balance between them (goals beside an obstacle, where the axis must give way) carries
+    # scale^2. plan.final_axis carries none: the reference goal is reached with the axis held
+    # and no obstacle in the way, no trade-off to balance (docs/planner.md, "CR's costs").
+    final_axis: float = field(default=1e4, metadata=scaled(2))  # [-] original
+    collision: float = 10.0  # [-] original 1 (docs/planner.md, "CR's costs")
     collision_margin: float = field(default=0.1, metadata=scaled(1))  # [m] original
     knot_dt: float = 0.01  # [s] the reference's (original)
     max_iterations: int = 20  # [-] original
@@ -196,16 +145,7 @@ class CR(Method):
             )
         if not (math.isfinite(c.tail_horizon) and c.tail_horizon >= 0.0):
             raise ConfigError.invalid("tail_horizon", c.tail_horizon, ">= 0 [s]")
-        self.costs = TrajectoryCosts(
-            acceleration=c.acceleration,
-            final_position=c.final_position,
-            final_velocity=c.final_velocity,
-            final_axis=c.final_axis,
-            final_axis_velocity=c.final_axis_velocity,
-            collision=c.collision,
-            collision_margin=c.collision_margin,
-            metric=metric,
-        )
+        self.costs = TrajectoryCosts.from_weights(c, metric)
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.reference_q = Q

@@ -56,12 +56,8 @@ def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
 
 def reference_costs(robot: RobotModel, config: PlanConfig) -> TrajectoryCosts:
     """The reference problem's cost terms (ConfigError for a setting they cannot take)."""
-    return TrajectoryCosts(
-        **config.cost_weights(),
-        collision=0.0,
-        metric=joint_metric(config.metric, robot.nv),
-        final_velocity_space=config.final_velocity_space,
-    )
+    metric = joint_metric(config.metric, robot.nv)
+    return TrajectoryCosts.from_weights(config, metric, config.final_velocity_space)
 
 
 def solve_reference(

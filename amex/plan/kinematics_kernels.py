@@ -1,20 +1,10 @@
 """Compiled (Numba) batched kinematics: joint frames and capsule-sphere distances for all knots.
 
-CR re-solves its trajectory every outer step, and each cost evaluation needs the arm's frames and
-its capsules' distances to the obstacles at every knot (up to 400). In numpy these are ~80 array
-operations of a few hundred elements each, dominated by call overhead (~0.4 ms per evaluation);
-here each is one compiled loop nest (~0.03 ms). :class:`~amex.plan.batch_kinematics.BatchKinematics`
-calls them for every trajectory of two knots or more.
-
-Bit for bit the numpy arithmetic: compiled without ``fastmath`` (IEEE operations in program
-order, no contraction into fused multiply-adds), except where numpy itself fuses. Its matrix
-products go to OpenBLAS, whose kernels accumulate ``sum_k a_k b_k`` as a chain of fused
-multiply-adds onto +0.0 from ``k = 0`` (:func:`fma3` does the same, signed zeros included); its
-``einsum('cat,cat->ct')`` adds the three products left to right for two or more knots (for one
-knot it pairs them differently, so one-knot trajectories stay in numpy); sines, cosines and the
-matrix-vector products (summed in an order of OpenBLAS's own) come from numpy.
-``tests/test_optimizer.py`` checks equality, sign bits included, with the numpy path on random
-configurations.
+One compiled loop nest per quantity (~0.03 ms per evaluation at 400 knots, where numpy's ~80
+small array operations cost ~0.4 ms), called by
+:class:`~amex.plan.batch_kinematics.BatchKinematics` for every trajectory of two knots or more.
+Bit for bit the numpy arithmetic, OpenBLAS's fused multiply-adds included (:func:`fma3`); why
+and how: docs/planner.md, "Batched kinematics and compiled kernels".
 """
 
 from __future__ import annotations
@@ -151,7 +141,7 @@ def final_terms_joint(
     residual: np.ndarray,
     jac: np.ndarray,
 ) -> None:
-    """The final terms of :func:`amex.plan.optimizer._final_terms` with a joint final velocity.
+    """The final terms of :func:`~amex.plan.optimizer.final_terms.final_terms`, joint velocity.
 
     Fills ``Jz`` (3, n), ``jac`` (9 + n, 2n) and ``residual`` (9 + n,) but its last three
     entries, ``w[3] * (Jz @ v)``, which numpy adds (its matrix-vector product sums in an order of
@@ -269,7 +259,7 @@ def near_pairs(
 
     Returns ``(cap, obs, knot, r)`` with ``r = scale * max(1 - d / margin, 0)``, and writes ``r``
     into ``r_col`` (C, k, T) at the pairs: what ``np.nonzero`` of the transposed test and the
-    numpy expressions of :func:`amex.plan.optimizer._residuals` give.
+    numpy expressions of :func:`amex.plan.optimizer.residuals.residuals` give.
     """
     C, k, T = distance.shape
     count = 0

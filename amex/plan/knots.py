@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from amex.core.errors import ConfigError
+
 
 def resample_knots(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:
     """Rows at fractional indices ``offset + k stride``, ``k < count``, linearly interpolated.
@@ -38,3 +40,22 @@ def whole_knots(length: int, offset: float, stride: float, count: int) -> np.nda
     np.minimum(index, length - 1, out=index)
     np.maximum(index, 0, out=index)
     return index
+
+
+def shift_warm_start(solution_q: np.ndarray, steps_new: int) -> np.ndarray:
+    """Warm start for the next replanning step (CR): drop the first knot, keep ``steps_new``.
+
+    Args:
+        solution_q: previous solution, shape (T + 1, 7) [rad].
+        steps_new: the next horizon T'; rows past the old end repeat the old final knot.
+
+    Returns:
+        Initial trajectory, shape (T' + 1, 7) [rad]; row 0 (the old q_1) stands for the start.
+    """
+    if int(steps_new) != steps_new or steps_new < 1:
+        raise ConfigError.invalid("steps_new", steps_new, "an integer >= 1")
+    rest = np.asarray(solution_q, dtype=float)[1:]
+    if len(rest) == 0:
+        raise ConfigError.invalid("solution_q rows", 1, ">= 2")
+    index = np.minimum(np.arange(steps_new + 1), len(rest) - 1)
+    return rest[index]

@@ -1,8 +1,8 @@
 """What a trajectory optimization is asked and what it returns: costs, problem, solution.
 
-The cost terms are defined in :mod:`amex.plan.optimizer` (its module docstring gives f(x));
-these containers validate their inputs once, at construction, so the solver's inner loop does
-not have to: a bad shape, range or non-finite value raises here, carrying the problem.
+The cost f(x) is in docs/planner.md. These containers validate their inputs once, at
+construction, so the solver's inner loop does not have to: a bad shape, range or non-finite
+value raises here, carrying the problem.
 """
 
 from __future__ import annotations
@@ -14,22 +14,18 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from amex.core.errors import ConfigError, SolverError
+from amex.plan.weights import CollisionWeights, CostWeights
 
 VELOCITY_SPACES = ("joint", "tcp")
 
 
 @dataclass(frozen=True)
 class TrajectoryCosts:
-    """Weights of the cost terms (module docstring); the original's values (DESIGN.md).
+    """The cost terms of a trajectory optimization: their weights, the joint metric, the velocity.
 
     Attributes:
-        acceleration: weight of sum_t ||q_ddot_t||^2 dt [s^3/rad^2 per unit cost].
-        final_position: weight of the squared TCP position error at q_T [1/m^2].
-        final_velocity: weight of the squared joint speed at the end [s^2/rad^2].
-        final_axis: weight of the squared TCP z-axis error at q_T.
-        final_axis_velocity: weight of the squared TCP z-axis rate at the end [s^2].
-        collision: weight of sum over knots and pairs of max(0, 1 - d / margin)^2.
-        collision_margin: distance below which the collision term acts [m].
+        weights: the weights of the terms (copied at construction, so a configuration changed
+            later does not change them).
         metric: joint metric diag(H) of the acceleration term, ``sum_t q_ddot_t^T H q_ddot_t dt``
             (:func:`~amex.robot.geometry.joint_metric`); empty: the identity.
         final_velocity_space: the final velocity term on the joints (``joint``, ours:
@@ -37,15 +33,27 @@ class TrajectoryCosts:
             ``(p(q_T) - p(q_{T-1})) / dt``).
     """
 
-    acceleration: float = 1.0
-    final_position: float = 1e4
-    final_velocity: float = 1e3
-    final_axis: float = 1e4
-    final_axis_velocity: float = 1e3
-    collision: float = 1.0
-    collision_margin: float = 0.02  # [m]
+    weights: CollisionWeights = field(default_factory=CollisionWeights)
     metric: tuple[float, ...] = ()
     final_velocity_space: str = "joint"
+
+    @classmethod
+    def from_weights(
+        cls,
+        weights: CostWeights,
+        metric: tuple[float, ...] = (),
+        final_velocity_space: str = "joint",
+    ) -> TrajectoryCosts:
+        """The costs with the weights of ``weights``, e.g. a configuration that inherits them.
+
+        Weights without the collision fields (:class:`CostWeights`, the reference plan's) give
+        no collision term.
+        """
+        names = [f.name for f in fields(CollisionWeights) if hasattr(weights, f.name)]
+        values = {name: getattr(weights, name) for name in names}
+        if not isinstance(weights, CollisionWeights):
+            values["collision"] = 0.0
+        return cls(CollisionWeights(**values), metric, final_velocity_space)
 
     def __post_init__(self) -> None:
         if self.final_velocity_space not in VELOCITY_SPACES:
@@ -55,14 +63,15 @@ class TrajectoryCosts:
         object.__setattr__(self, "metric", tuple(float(h) for h in self.metric))
         if not all(math.isfinite(h) and h > 0.0 for h in self.metric):
             raise ConfigError.invalid("costs.metric", self.metric, "finite weights > 0")
-        not_weights = ("collision_margin", "metric", "final_velocity_space")
-        weights = (f.name for f in fields(self) if f.name not in not_weights)
-        for name in weights:
-            value = getattr(self, name)
+        w = self.weights
+        copy = CollisionWeights(**{f.name: getattr(w, f.name) for f in fields(CollisionWeights)})
+        object.__setattr__(self, "weights", copy)
+        for name in (f.name for f in fields(copy) if f.name != "collision_margin"):
+            value = getattr(copy, name)
             if not (math.isfinite(value) and value >= 0.0):
                 raise ConfigError.invalid(f"costs.{name}", value, "a finite weight >= 0")
-        if not (math.isfinite(self.collision_margin) and self.collision_margin > 0.0):
-            raise ConfigError.invalid("costs.collision_margin", self.collision_margin, "> 0 [m]")
+        if not (math.isfinite(copy.collision_margin) and copy.collision_margin > 0.0):
+            raise ConfigError.invalid("costs.collision_margin", copy.collision_margin, "> 0 [m]")
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,7 +135,7 @@ class TrajectorySolution(NamedTuple):
             step was taken or not).
         converged: whether the step or the relative cost decrease fell below the tolerance.
         frames: the frames and obstacle distances at the free knots ``q[1:]``
-            (:class:`amex.plan.optimizer.KnotFrames`), or None (no collision term).
+            (:class:`~amex.plan.optimizer.KnotFrames`), or None (no collision term).
     """
 
     q: np.ndarray

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from amex.plan.weights import CostWeights
+
 
 @dataclass(frozen=True)
 class ReferencePlan:
@@ -43,18 +45,24 @@ class ReferencePlan:
 
 
 @dataclass
-class PlanConfig:
-    """How the reference plan is computed (DESIGN: 400 steps over 4 s, Gauss-Newton, <= 20 its).
+class _PlanHorizon:
+    duration: float = 4.0  # [s] T_ref
+    dt: float = 0.01  # [s]
+    max_iterations: int = 20  # [-] original
+
+
+@dataclass
+class PlanConfig(CostWeights, _PlanHorizon):
+    """How the reference plan is computed: 400 steps over 4 s, <= 20 iterations (the original's).
+
+    The cost weights are :class:`~amex.plan.weights.CostWeights`' (no collision term: the
+    reference scene has no obstacle). The bases come in this order to keep the fields, and so
+    the configuration's keys, in their order: horizon, weights, the rest.
 
     Attributes:
         duration: T_ref [s].
         dt: knot spacing [s].
-        max_iterations: Gauss-Newton iterations (original: 20).
-        acceleration: weight of the squared joint accelerations.
-        final_position: weight of the final TCP position error (original 1e4).
-        final_velocity: weight of the final joint velocity (original 1e3).
-        final_axis: weight of the final TCP z-axis error (original 1e4).
-        final_axis_velocity: weight of the final TCP z-axis velocity (original 1e3).
+        max_iterations: solver iterations (original: 20).
         metric: joint metric of the acceleration term, ``identity`` or ``original`` (the
             authors' H = diag(sqrt(n), ..., 1); :func:`~amex.robot.geometry.joint_metric`).
         final_velocity_space: the final velocity term on the ``joint`` velocities (ours) or on
@@ -63,22 +71,9 @@ class PlanConfig:
             (the authors' :func:`~amex.plan.optimizer.solve_trajectory_newton`).
     """
 
-    duration: float = 4.0
-    dt: float = 0.01
-    max_iterations: int = 20
-    acceleration: float = 1.0
-    final_position: float = 1e4
-    final_velocity: float = 1e3
-    final_axis: float = 1e4
-    final_axis_velocity: float = 1e3
     metric: str = "identity"
     final_velocity_space: str = "joint"
     solver: str = "levenberg"
-
-    def cost_weights(self) -> dict[str, float]:
-        """The plan's cost weights, named as :class:`~amex.plan.optimizer.TrajectoryCosts` does."""
-        names = ("acceleration", "final_position", "final_velocity", "final_axis")  # not metric
-        return {name: getattr(self, name) for name in (*names, "final_axis_velocity")}
 
     @property
     def steps(self) -> int:

@@ -4,7 +4,7 @@ import pinocchio as pin
 import pytest
 
 from amex.control.collision import CollisionModel
-from amex.control.kernels import clip_inplace
+from amex.control.kernels import clip_inplace, pack_params
 from amex.control.osc import PD, Command, OperationalSpaceController, OSCGains, solve_objective
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, PositionMap
@@ -130,6 +130,28 @@ def test_a_nan_state_is_a_solver_error_carrying_the_system(robot):
     with pytest.raises(SolverError, match="not positive definite") as info:
         osc.torque(state, Command(y=np.zeros(6), yd=np.zeros(6)))
     assert info.value.problem.A.shape == (7, 7)
+
+
+def test_kernel_params_name_every_gain_of_the_controller():
+    pos, dir_, joint, col, damping = (PD(1.0 + i, 10.0 + i, 0.1 + i) for i in range(5))
+    hdiag, q_rest = np.arange(1.0, 8.0), -np.arange(7.0)
+    p = pack_params(pos, dir_, joint, col, damping, False, hdiag, q_rest)[0]
+    for prefix, pd in (("pos", pos), ("axis", dir_), ("joint", joint), ("col", col)):
+        named = (p[f"{prefix}_kp"], p[f"{prefix}_kd"], p[f"{prefix}_weight"])
+        assert named == (pd.kp, pd.kd, pd.weight)
+    assert p["damping_velocity"] == -damping.weight * damping.kd
+    assert p["damping_posture"] == damping.weight * damping.kp
+    assert not p["drift"]
+    assert np.array_equal(p["hdiag"], hdiag) and np.array_equal(p["q_rest"], q_rest)
+
+
+def test_the_controller_keeps_its_rest_posture_read_only(robot):
+    q_rest = robot.q0 + 0.1
+    osc = OperationalSpaceController(robot, OSCGains(), q_rest=q_rest)
+    q_rest[0] = 5.0  # the caller's array is copied
+    assert osc.q_rest[0] == robot.q0[0] + 0.1
+    with pytest.raises(ValueError, match="read-only"):
+        osc.q_rest[0] = 1.0
 
 
 def test_compiled_clip_matches_numpy_and_keeps_nan():

@@ -23,8 +23,9 @@ from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one
 from amex.methods import CR, METHODS, CRConfig
 from amex.methods.base import Observation
-from amex.plan.knots import resample_knots
-from amex.plan.optimizer import TrajectoryProblem, shift_warm_start, solve_trajectory
+from amex.plan.knots import resample_knots, shift_warm_start
+from amex.plan.optimizer import TrajectoryProblem, solve_trajectory
+from amex.plan.weights import CostWeights
 from amex.sim.episode import run_episode
 from amex.sim.scenario import make_scenario
 
@@ -46,7 +47,8 @@ def context():
 def reference_weights(config: RunConfig, **changes) -> CRConfig:
     """CR with exactly the reference plan's cost weights (no collision term)."""
     p = config.plan
-    weights = dict(**p.cost_weights(), collision=0.0, knot_dt=p.dt)
+    weights = {f.name: getattr(p, f.name) for f in dataclasses.fields(CostWeights)}
+    weights.update(collision=0.0, knot_dt=p.dt)
     return CRConfig(**{**weights, **changes})
 
 
@@ -166,7 +168,7 @@ def test_plan_keeps_out_of_the_obstacle_margin_in_a_task3_scene(context):
     cr = CR.from_plan(plan, scene(CRConfig()), DT, robot)
     cr.reset(obs)
     cr.step(obs)
-    margin = cr.costs.collision_margin
+    margin = cr.costs.weights.collision_margin
     assert min_clearance(robot, centers, radii, plan.q) < 0.0  # the reference runs through it
     assert min_clearance(robot, centers, radii, cr.knots) >= margin - 2e-3
     final_tcp = robot.task_position(cr.knots[-1])[:3]

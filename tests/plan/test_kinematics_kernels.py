@@ -14,7 +14,9 @@ import pytest
 from amex.plan import optimizer as opt
 from amex.plan.batch_kinematics import BatchKinematics
 from amex.plan.kinematics_kernels import near_pairs
+from amex.plan.optimizer.final_terms import final_terms, final_terms_numpy
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
+from amex.plan.weights import CollisionWeights
 from amex.robot import RobotConfig, load_robot
 
 ROBOTS = ("panda", "chain7", "ur5")
@@ -97,12 +99,12 @@ def test_compiled_final_terms_equal_numpy(arm):
             dt=0.01,
             goal_pos=rng.normal(size=3),
             goal_axis=np.array([0.0, 0.0, -1.0]),
-            costs=TrajectoryCosts(final_axis=float(rng.uniform(1.0, 1e4))),
+            costs=TrajectoryCosts(CollisionWeights(final_axis=float(rng.uniform(1.0, 1e4)))),
         )
         q_prev = robot.q0 + rng.normal(size=robot.nv)
         q_last = q_prev + rng.normal(scale=0.05, size=robot.nv)
         args = (robot.model, data, robot.tcp_frame_id, problem, q_prev, q_last)
-        for fast, slow in zip(opt._final_terms(*args), opt._final_terms_numpy(*args), strict=True):
+        for fast, slow in zip(final_terms(*args), final_terms_numpy(*args), strict=True):
             assert identical(fast, slow)
 
 
@@ -118,7 +120,7 @@ def test_a_warm_start_with_the_last_frames_gives_the_same_solution(robot):
         goal_axis=np.array([0.0, 0.0, -1.0]),
         obstacles=centers,
         obstacle_radii=np.array([0.02]),
-        costs=TrajectoryCosts(collision=10.0),
+        costs=TrajectoryCosts(CollisionWeights(collision=10.0)),
     )
     first = opt.solve_trajectory(robot, problem, max_iterations=5)
     assert first.frames is not None

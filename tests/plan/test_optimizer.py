@@ -13,17 +13,18 @@ import pytest
 
 from amex.control.collision import CollisionModel
 from amex.core.errors import ConfigError, SolverError
+from amex.plan.knots import shift_warm_start
 from amex.plan.optimizer import (
     TrajectoryCosts,
     TrajectoryProblem,
     batch_kinematics,
     build_normal_equations,
-    shift_warm_start,
     solve_trajectory,
     trajectory_residuals,
 )
+from amex.plan.weights import CollisionWeights
 
-GOAL_POS = np.array([0.384, 0.229, 0.461])  # reference goal (DESIGN.md, scale 0.2) [m]
+GOAL_POS = np.array([0.384, 0.229, 0.461])  # the Panda's reference goal (scale 0.2) [m]
 GOAL_AXIS = np.array([0.0, 0.0, -1.0])
 START_TCP = np.array([0.307, 0.0, 0.487])  # TCP at q0 [m]
 STEP = 1e-6  # finite-difference step [rad]; revolute joints, so pin.integrate is q + dq
@@ -73,8 +74,8 @@ def random_case(robot, seed: int, costs: TrajectoryCosts, steps: int = 5):
 
 def only(term: str) -> TrajectoryCosts:
     weights = {t: 0.0 for t in TERMS}
-    weights[term] = getattr(TrajectoryCosts(), term)
-    return TrajectoryCosts(**weights, collision_margin=0.15)
+    weights[term] = getattr(CollisionWeights(), term)
+    return TrajectoryCosts(CollisionWeights(**weights, collision_margin=0.15))
 
 
 def finite_difference(f, q: np.ndarray) -> np.ndarray:
@@ -97,7 +98,7 @@ def collision_margin_is_clear(robot, problem, q) -> bool:
     """No pair within 1e-4 m of the margin (the hinge's kink), and at least one pair active."""
     kin = batch_kinematics(robot)
     d = kin.capsule_distances(kin.forward(q[1:]), problem.obstacles, problem.obstacle_radii)
-    gap = d.distance - problem.costs.collision_margin
+    gap = d.distance - problem.costs.weights.collision_margin
     return bool(np.min(np.abs(gap)) > 1e-4 and np.any(gap < 0))
 
 
@@ -122,7 +123,7 @@ def test_collision_gradient_matches_finite_differences(robot, seed):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_banded_normal_equations_equal_dense_gauss_newton(robot, seed):
-    costs = TrajectoryCosts(collision_margin=0.15)
+    costs = TrajectoryCosts(CollisionWeights(collision_margin=0.15))
     problem, q = random_case(robot, seed, costs)
     assert collision_margin_is_clear(robot, problem, q)
     eq = build_normal_equations(robot, problem, q)
@@ -135,7 +136,9 @@ def test_banded_normal_equations_equal_dense_gauss_newton(robot, seed):
 
 
 def test_one_step_horizon_has_consistent_normal_equations(robot):
-    problem, q = random_case(robot, 3, TrajectoryCosts(collision_margin=0.15), steps=1)
+    problem, q = random_case(
+        robot, 3, TrajectoryCosts(CollisionWeights(collision_margin=0.15)), steps=1
+    )
     eq = build_normal_equations(robot, problem, q)
     r = trajectory_residuals(robot, problem, q)
     J = finite_difference(lambda x: trajectory_residuals(robot, problem, x), q)
@@ -234,7 +237,7 @@ def min_distance_along(robot, problem, q) -> float:
 def test_collision_term_keeps_trajectory_clear_of_obstacle(robot):
     obstacle = np.array([(START_TCP + GOAL_POS) / 2])
     problem = reference_problem(robot, steps=300, obstacles=obstacle, obstacle_radii=[0.02])
-    blind = dataclasses.replace(problem, costs=TrajectoryCosts(collision=0.0))
+    blind = dataclasses.replace(problem, costs=TrajectoryCosts(CollisionWeights(collision=0.0)))
     d_blind = min_distance_along(robot, problem, solve_trajectory(robot, blind).q)
     d_aware = min_distance_along(robot, problem, solve_trajectory(robot, problem).q)
     assert d_blind < 0.0  # the obstacle sits on the obstacle-free path

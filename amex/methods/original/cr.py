@@ -1,24 +1,11 @@
 """Continuous replanning as the authors' harness ran it (``mpc.cpp`` at commit b475fa1fe).
 
-``implementation=original method=cr`` selects it (``experiment=original`` sets it). Against
-:class:`~amex.methods.cr.CR` (ours):
-
-* Costs: the reference plan's, as the original set them: squared accelerations in the joint
-  metric of the plan, final TCP position 1e4, final TCP velocity 1e3, final TCP axis 1e4 and its
-  rate 1e3, plus the collision proxy ``(1 - d / margin)^2`` per knot and pair at weight 1
-  (``method.collision_margin``, original 0.1 m, in scene units; the other cost weights of
-  ``method.*`` do not apply). Solved by the authors' Newton method
-  (:func:`~amex.plan.optimizer.solve_trajectory_newton`, at most ``method.max_iterations``
-  steps), which leaves most warm starts unchanged.
-* Horizon: it starts with the reference's T knots and shrinks by one knot per outer step, so it
-  always ends at T_ref. Each step drops the first knot of the previous solution (the warm start)
-  and re-optimizes all the remaining knots, the first one included; the fixed prefix before them
-  is the measured configuration of the two *previous* outer steps (the start, at rest, for the
-  first two steps). Below 3 knots it stops replanning and keeps the last three.
-* Command: the next knot and the difference to the current one, ``q* = x_1``,
-  ``q_dot* = (x_1 - x_0) / dt``.
-* End: once fewer than 2 knots remain (t = T_ref - 0.01 s) the episode ends (:attr:`finished`),
-  whether the goal was reached or not.
+``implementation=original method=cr`` selects it (``experiment=original`` sets it). The
+original's costs (final TCP velocity, collision weight 1) solved by their Newton method
+(:func:`~amex.plan.optimizer.solve_trajectory_newton`); a horizon shrinking by one knot per
+outer step with the measured configurations of the two previous steps as its fixed prefix; the
+command ``q* = x_1``, ``q_dot* = (x_1 - x_0) / dt``; the episode ends once fewer than 2 knots
+remain. Against ours: docs/planner.md, "The authors' CR".
 """
 
 from __future__ import annotations
@@ -34,14 +21,11 @@ from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.cr import CRConfig, CRStatus
 from amex.plan.knots import resample_knots
+from amex.plan.weights import CollisionWeights
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
-
-#: The original's cost weights: final position, final TCP velocity, final axis, its rate,
-#: collision proxy.
-ORIGINAL_WEIGHTS = (1e4, 1e3, 1e4, 1e3, 1.0)
 
 
 class CROriginal(Method):
@@ -77,18 +61,8 @@ class CROriginal(Method):
             raise ConfigError.invalid("reference_q", Q.shape, f"finite (T + 1 >= 3, {robot.nv})")
         if not (math.isfinite(dt) and dt > 0.0):
             raise ConfigError.invalid("dt", dt, "> 0 [s]")
-        position, velocity, axis, axis_velocity, collision = ORIGINAL_WEIGHTS
-        self.costs = TrajectoryCosts(
-            acceleration=1.0,
-            final_position=position,
-            final_velocity=velocity,
-            final_axis=axis,
-            final_axis_velocity=axis_velocity,
-            collision=collision,
-            collision_margin=collision_margin,
-            metric=metric,
-            final_velocity_space="tcp",
-        )
+        weights = CollisionWeights(collision_margin=collision_margin)  # the original's weights
+        self.costs = TrajectoryCosts.from_weights(weights, metric, final_velocity_space="tcp")
         self.robot = robot
         self.reference_q = Q
         self.dt = float(dt)
