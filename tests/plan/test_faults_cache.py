@@ -81,11 +81,11 @@ def test_a_damaged_or_mismatched_cache_file_is_solved_again_and_replaced(
     path = _path(robot, tmp_path)
     path.parent.mkdir(parents=True, exist_ok=True)
     _damage(kind, path, fresh)
-    assert load_cached(path, robot, CONFIG) is None
+    assert load_cached(path, robot, CONFIG, GOAL, AXIS) is None
     plan = reference_plan(robot, CONFIG, GOAL, AXIS, directory=tmp_path)
     np.testing.assert_array_equal(plan.q, fresh.q)
     np.testing.assert_array_equal(plan.y, fresh.y)
-    again = load_cached(path, robot, CONFIG)  # the file was replaced by a valid one
+    again = load_cached(path, robot, CONFIG, GOAL, AXIS)  # the file was replaced by a valid one
     assert again is not None and np.array_equal(again.q, fresh.q)
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no temporary left
 
