@@ -29,6 +29,7 @@ picks (docs/reproducibility.md), and edits made after the process first computed
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import json
@@ -148,8 +149,10 @@ def _module_digest(module_name: str) -> str:
     except OSError:
         h.update(b"(unreadable source file)")
     top = module_name.partition(".")[0]
-    for dist in sorted(set(_distributions().get(top, []))):
-        h.update(f"\0{dist}=={metadata.version(dist)}".encode())
+    for dist in sorted(set(_distributions().get(top, [top]))):  # else: a dist named as the module
+        # not from a distribution (a script's directory, PYTHONPATH): no version
+        with contextlib.suppress(metadata.PackageNotFoundError):
+            h.update(f"\0{dist}=={metadata.version(dist)}".encode())
     return h.hexdigest()[:16]
 
 

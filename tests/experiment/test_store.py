@@ -21,7 +21,8 @@ def test_an_added_option_at_its_neutral_value_hashes_as_if_it_did_not_exist():
 
     spec = _spec(_config(), ())
     assert spec["perception"]["preview"] == 0.0
-    without = {**spec, "perception": {k: v for k, v in spec["perception"].items() if k != "preview"}}
+    perception = {k: v for k, v in spec["perception"].items() if k != "preview"}
+    without = {**spec, "perception": perception}
     assert _digest(spec, "code") == _digest(without, "code")
 
 
