@@ -264,12 +264,6 @@ class _Reader:
     def check_expected(self, expect: RunIdentity) -> None:
         """After every row passed: the file's one configuration must be ``expect``'s."""
         where = "choose another hydra.run.dir (hydra.sweep.dir for -m)"
-        if self.unhashed:
-            raise self.fail(
-                self.unhashed[0],
-                "no row_hash: the row cannot be verified, and a run resumes from verified rows "
-                f"only; {where}",
-            )
         if not self.envs:
             return
         found = {name: value for name, (value, _) in self.first.items()}
@@ -293,6 +287,12 @@ class _Reader:
             wanted = getattr(expect, name)
             if wanted not in (None, "") and found.get(name) != str(wanted):
                 raise self.fail(line, f"{name}={found.get(name)}, this run's {name} is {wanted}")
+        if self.unhashed:
+            raise self.fail(
+                self.unhashed[0],
+                "no row_hash: the row cannot be verified, and a run resumes from verified rows "
+                f"only; {where}",
+            )
 
 
 def read_episodes(path: Path, expect: RunIdentity | None = None) -> StoredEpisodes:
@@ -364,8 +364,9 @@ class EpisodeStore:
     """Append-only episodes.csv of one run directory, resumable by config hash.
 
     Opening it checks the rows already there (:func:`read_episodes` with the run's identity) and
-    writes nothing but a header into a new or empty file, or cuts a torn last line off; rows are
-    appended in the file's own columns (module notes).
+    writes nothing but a header into a file without rows (this version's columns, then any others
+    its header named), or cuts a torn last line off; rows are appended in the file's own columns
+    (module notes).
 
     Args:
         path: the csv file (not a symbolic link).
@@ -390,8 +391,10 @@ class EpisodeStore:
         self.done: dict[int, EpisodeResult] = {}
         refuse_link(path)
         stored = read_episodes(path, self.identity) if path.exists() else None
-        if stored is None or not stored.header:
-            replace_durably(path, _line(list(CSV_COLUMNS)).encode())
+        if stored is None or not stored.rows:  # nothing to keep but the names of unknown columns
+            unknown = [c for c in (stored.header if stored else ()) if c not in CSV_COLUMNS]
+            self.header = (*CSV_COLUMNS, *unknown)
+            replace_durably(path, _line(list(self.header)).encode())
             return
         self.header = stored.header
         self.done = stored.by_env

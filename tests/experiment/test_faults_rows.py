@@ -164,3 +164,16 @@ def test_columns_amex_does_not_know_are_kept_and_left_empty_in_new_rows(recorded
     assert [r[column] for r in stored.rows][:3] == [r[header.index(column)] for r in rows]
     assert stored.rows[3][column] == "" and stored.rows[3]["env"] == "3"
     assert len(load_runs(tmp_path / "runs")) == 4
+
+
+def test_a_file_with_a_header_and_no_rows_gets_this_versions_columns(tmp_path):
+    from amex.experiment.store import CSV_COLUMNS
+    from amex.sim.metrics import COLUMNS
+
+    path = tmp_path / "run" / "episodes.csv"
+    path.parent.mkdir()
+    _write(path, [*COLUMNS, "config_hash", "scene_hash", "note"], [])  # older amex, no rows
+    run(_config(1), path.parent)
+    stored = read_episodes(path)
+    assert stored.header == (*CSV_COLUMNS, "note")  # an unknown column's name is kept
+    assert stored.verified and [r["env"] for r in stored.rows] == ["0"]
