@@ -12,6 +12,14 @@ limit, an I/O error). Built on it:
 
 :class:`RunLock` is the run directory's lock: an ``flock`` held while a run writes, which the
 kernel releases when the process ends however it ends, so a crash cannot leave it stuck.
+
+None of them follows a symbolic link at the final component of the path it writes: the lock file
+and appended files are opened with ``O_NOFOLLOW`` (and must be regular files), a replaced or new
+file's name is checked with ``lstat`` just before the rename (which would replace a link, never
+write through it), and temporary files are created with ``O_EXCL``. A link there is refused with
+one :class:`WriteError` naming the file and where the link points, and nothing is written: a
+link planted in a run directory cannot make amex truncate or overwrite another file. Links in the
+directories above the file are followed as usual (a run directory may live behind one).
 """
 
 from __future__ import annotations
@@ -20,21 +28,56 @@ import contextlib
 import errno
 import fcntl
 import os
+import secrets
 import socket
+import stat
 import time
 from pathlib import Path
 
 from amex.core.errors import LockedError, WriteError
 
 LOCK_NAME = ".amex-run.lock"
-
-
-
-
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)  # POSIX; without it the lstat checks below remain
 
 
 def _reason(error: OSError) -> str:
     return error.strerror or str(error)
+
+
+def _link_refusal(path: Path | str) -> WriteError:
+    try:
+        target = os.readlink(path)
+    except OSError:
+        target = "?"
+    return WriteError(
+        path,
+        f"it is a symbolic link (to {target}); amex never writes through a link: "
+        "remove it or choose another directory",
+    )
+
+
+def refuse_link(path: Path | str) -> None:
+    """Raise :class:`WriteError` if ``path`` is a symbolic link (module notes); else nothing."""
+    if os.path.islink(path):
+        raise _link_refusal(path)
+
+
+def _open_no_link(path: Path | str, flags: int, mode: int = 0o644) -> int:
+    """``os.open`` that refuses a link at the final component and anything but a regular file.
+
+    Raises:
+        WriteError: the open failed, ``path`` is a symbolic link or not a regular file.
+    """
+    try:
+        fd = os.open(path, flags | _NOFOLLOW, mode)
+    except OSError as e:
+        if e.errno in (errno.ELOOP, errno.EMLINK) and os.path.islink(path):
+            raise _link_refusal(path) from e
+        raise WriteError(path, _reason(e)) from e
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise WriteError(path, "not a regular file; amex writes only regular files")
+    return fd
 
 
 def write_all(fd: int, data: bytes, path: Path | str) -> None:
@@ -67,10 +110,7 @@ def append_durably(path: Path, data: bytes) -> None:
     Raises:
         WriteError: the record could not be written; the file is cut back to its old length.
     """
-    try:
-        fd = os.open(path, os.O_WRONLY | os.O_APPEND)
-    except OSError as e:
-        raise WriteError(path, _reason(e)) from e
+    fd = _open_no_link(path, os.O_WRONLY | os.O_APPEND)
     try:
         start = os.fstat(fd).st_size
         try:
@@ -86,10 +126,13 @@ def append_durably(path: Path, data: bytes) -> None:
 
 
 def _write_temporary(path: Path, data: bytes) -> Path:
-    """``data`` in a new fsynced file beside ``path``; removed again if anything fails."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    """``data`` in a new fsynced file beside ``path``; removed again if anything fails.
+
+    The temporary name is new (``O_EXCL``, a random part): nothing that exists is written.
+    """
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o644)
     except OSError as e:
         raise WriteError(path, _reason(e)) from e
     try:
@@ -117,10 +160,13 @@ def replace_durably(path: Path, data: bytes) -> None:
     """Write ``data`` as the new content of ``path``, atomically (temporary file, rename).
 
     Raises:
-        WriteError: nothing was replaced; ``path`` keeps its old content (or stays absent).
+        WriteError: nothing was replaced; ``path`` keeps its old content (or stays absent), also
+            when ``path`` is a symbolic link (module notes).
     """
+    refuse_link(path)
     tmp = _write_temporary(path, data)
     try:
+        refuse_link(path)  # again, just before the rename (which would replace, not follow)
         os.replace(tmp, path)
     except OSError as e:
         with contextlib.suppress(OSError):
@@ -136,7 +182,7 @@ def create_new(path: Path, data: bytes) -> None:
         FileExistsError: ``path`` exists (checked atomically, at the final link).
         WriteError: the file could not be written; nothing is left behind.
     """
-    if path.exists() or path.is_symlink():
+    if os.path.lexists(path):
         raise FileExistsError(errno.EEXIST, "file exists, not overwriting it", str(path))
     tmp = _write_temporary(path, data)
     try:
@@ -166,11 +212,14 @@ class RunLock:
         self._fd: int | None = None
 
     def acquire(self) -> RunLock:
-        """Take the lock, or raise :class:`LockedError` naming its holder (no waiting)."""
-        try:
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as e:
-            raise WriteError(self.path, _reason(e)) from e
+        """Take the lock, or raise :class:`LockedError` naming its holder (no waiting).
+
+        Raises:
+            LockedError: another process holds it.
+            WriteError: the lock file cannot be opened, or it is a symbolic link or not a
+                regular file (it is neither followed nor changed).
+        """
+        fd = _open_no_link(self.path, os.O_RDWR | os.O_CREAT)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -203,9 +252,12 @@ class RunLock:
     def holder(directory: Path) -> str | None:
         """Who holds the lock of ``directory`` now (None if nobody); never creates anything."""
         path = directory / LOCK_NAME
-        try:
-            fd = os.open(path, os.O_RDONLY)
+        try:  # a link is nobody's lock (acquire refuses it)
+            fd = os.open(path, os.O_RDONLY | _NOFOLLOW | os.O_NONBLOCK)
         except OSError:
+            return None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
             return None
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)

@@ -32,7 +32,7 @@ from amex.core.errors import ConfigError, WriteError
 from amex.core.schema import field_names
 from amex.experiment.config import RunConfig, validate
 from amex.experiment.shards import ShardSpec, write_spec
-from amex.experiment.store import EpisodeStore, config_hash, scene_hash
+from amex.experiment.store import EpisodeStore
 from amex.methods import Method, get_method
 from amex.plan.cache import reference_costs, reference_plan
 from amex.plan.reference import ReferencePlan
@@ -222,7 +222,7 @@ def _run_locked(
     config: RunConfig, run_dir: Path, progress: Callable[[int, EpisodeResult], None] | None
 ) -> dict:
     started = time.perf_counter(), time.process_time()
-    store = EpisodeStore(run_dir / EPISODES_CSV, config_hash(config), scene_hash(config))
+    store = EpisodeStore.for_config(run_dir / EPISODES_CSV, config)
     with contextlib.suppress(OSError):  # from an earlier run; written anew at the end
         (run_dir / SUMMARY_JSON).unlink()
     envs = config.envs

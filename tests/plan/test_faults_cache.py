@@ -5,8 +5,17 @@ import logging
 import numpy as np
 import pytest
 
-from amex.plan.cache import load_cached, plan_key, reference_plan, solve_reference
-from amex.plan.reference import PlanConfig
+from amex.plan.cache import (
+    END_TOLERANCE,
+    end_step,
+    load_cached,
+    plan_key,
+    plan_spec,
+    reference_plan,
+    solve_reference,
+    store,
+)
+from amex.plan.reference import PlanConfig, ReferencePlan
 
 GOAL = np.array([0.384, 0.229, 0.461])
 AXIS = np.array([0.0, 0.0, -1.0])
@@ -81,11 +90,11 @@ def test_a_damaged_or_mismatched_cache_file_is_solved_again_and_replaced(
     path = _path(robot, tmp_path)
     path.parent.mkdir(parents=True, exist_ok=True)
     _damage(kind, path, fresh)
-    assert load_cached(path, robot, CONFIG) is None
+    assert load_cached(path, robot, CONFIG, GOAL, AXIS) is None
     plan = reference_plan(robot, CONFIG, GOAL, AXIS, directory=tmp_path)
     np.testing.assert_array_equal(plan.q, fresh.q)
     np.testing.assert_array_equal(plan.y, fresh.y)
-    again = load_cached(path, robot, CONFIG)  # the file was replaced by a valid one
+    again = load_cached(path, robot, CONFIG, GOAL, AXIS)  # the file was replaced by a valid one
     assert again is not None and np.array_equal(again.q, fresh.q)
     assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]  # no temporary left
 
@@ -128,3 +137,69 @@ def test_a_valid_cache_file_is_used_as_is(robot, fresh, tmp_path):
     stamp = path.stat().st_mtime_ns
     plan = reference_plan(robot, CONFIG, GOAL, AXIS, directory=tmp_path)
     assert path.stat().st_mtime_ns == stamp and np.array_equal(plan.q, fresh.q)
+
+
+def _plan_of(robot, goal, config=CONFIG):
+    return solve_reference(robot, config, goal, AXIS)
+
+
+@pytest.mark.parametrize(
+    ("other", "label"),
+    [
+        ("goal", "none"),  # an older file: no key inside
+        ("goal", "its_own"),  # renamed or copied from another configuration's name
+        ("goal", "forged"),  # carrying this configuration's key: the end check finds it out
+        ("weights", "its_own"),  # same shape, start and goal, other final weights
+    ],
+)
+def test_a_plan_of_another_configuration_under_this_name_is_never_used(
+    robot, fresh, tmp_path, caplog, other, label
+):
+    if other == "goal":
+        goal, config = GOAL + np.array([0.02, 0.0, 0.0]), CONFIG
+    else:
+        goal, config = GOAL, PlanConfig(duration=0.5, final_position=1e3)
+    foreign = _plan_of(robot, goal, config)
+    assert foreign.q.shape == fresh.q.shape and np.array_equal(foreign.q[0], fresh.q[0])
+    path = _path(robot, tmp_path)
+    if label == "none":
+        _save(path, q=foreign.q, y=foreign.y, dt=foreign.dt)
+    elif label == "its_own":
+        store(path, foreign, plan_spec(robot, config, goal, AXIS))
+    else:
+        store(path, foreign, plan_spec(robot, CONFIG, GOAL, AXIS))
+    with caplog.at_level(logging.WARNING, logger="amex.plan.cache"):
+        plan = reference_plan(robot, CONFIG, GOAL, AXIS, directory=tmp_path)
+    np.testing.assert_array_equal(plan.q, fresh.q)
+    reason = {
+        "none": "unreadable",
+        "its_own": "solved for another configuration",
+        "forged": "its end is not where the solver puts it",
+    }[label]
+    assert f"{path} not used ({reason}" in caplog.text and "solved again" in caplog.text
+    again = load_cached(path, robot, CONFIG, GOAL, AXIS)  # replaced by this configuration's
+    assert again is not None and np.array_equal(again.q, fresh.q)
+
+
+def test_an_edited_task_space_image_is_not_used(robot, fresh, tmp_path, caplog):
+    path = _path(robot, tmp_path)
+    y = fresh.y.copy()
+    y[-1, 0] += 0.01  # the end moved without its joints
+    store(path, ReferencePlan(q=fresh.q, y=y, dt=fresh.dt), plan_spec(robot, CONFIG, GOAL, AXIS))
+    with caplog.at_level(logging.WARNING, logger="amex.plan.cache"):
+        plan = reference_plan(robot, CONFIG, GOAL, AXIS, directory=tmp_path)
+    np.testing.assert_array_equal(plan.y, fresh.y)
+    assert "not the kinematics of its joints" in caplog.text
+
+
+@pytest.mark.parametrize(
+    "config",
+    [PlanConfig(), PlanConfig(duration=0.5), PlanConfig(final_position=10.0)],
+    ids=["default", "short", "weak_final_weight"],
+)
+def test_a_solved_plan_passes_its_own_end_check_even_where_it_misses_the_goal(robot, config):
+    plan = solve_reference(robot, config, GOAL, AXIS)
+    position, axis = end_step(robot, config, plan.q, GOAL, AXIS)
+    assert position < END_TOLERANCE / 2 and axis < END_TOLERANCE / 2
+    moved = end_step(robot, config, plan.q, GOAL + np.array([0.0, 0.0, 5e-4]), AXIS)[0]
+    assert moved > END_TOLERANCE  # a plan of a goal 0.5 mm away is found out
