@@ -25,7 +25,7 @@ def check_regular(path: str | Path, key: str, limit: int = MAX_DESCRIPTION_BYTES
     try:
         info = os.stat(path)
     except OSError as e:
-        raise ConfigError(f"invalid {key}={str(path)!r}: {e.strerror}") from e
+        raise ConfigError(f"invalid {key}={str(path)!r}: cannot read ({e.strerror})") from e
     if not stat.S_ISREG(info.st_mode):
         kind = "a directory" if stat.S_ISDIR(info.st_mode) else "not a regular file"
         kind = "a FIFO" if stat.S_ISFIFO(info.st_mode) else kind
