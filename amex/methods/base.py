@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import abc
 import math
-from dataclasses import dataclass, field, fields, is_dataclass
+from dataclasses import dataclass, field, fields
+from numbers import Real
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -130,10 +131,7 @@ class Method(abc.ABC):
         duration = float(plan.duration)
         if not (math.isfinite(duration) and duration > 0.0):
             raise ConfigError.invalid("plan duration", duration, "> 0 [s]")
-        try:
-            period = float(dt)
-        except (TypeError, ValueError):
-            period = math.nan
+        period = float(dt) if isinstance(dt, Real) and not isinstance(dt, bool) else math.nan
         if not 0.0 < period <= duration:  # (False for nan)
             raise ConfigError.invalid("dt", dt, f"in (0, T_ref = {duration:g}] [s]")
         self.config = self._checked_config(config)
@@ -159,7 +157,13 @@ class Method(abc.ABC):
 
     @classmethod
     def _checked_config(cls, config: Any) -> Any:
-        """``config`` as a validated :attr:`config_class` instance (module notes)."""
+        """``config`` as a :attr:`config_class` instance, checked (see the class notes).
+
+        An instance of the class is used as is; another object with all the class's fields (a
+        config of the same fields) is converted; then :func:`~amex.core.schema.check_tree` checks
+        it as a run's validation does (finite numbers, the fields' limits, the config's own
+        ``validate()``), naming the fields ``method.<field>``.
+        """
         want = cls.config_class
         if config is None:
             config = want()
@@ -168,12 +172,12 @@ class Method(abc.ABC):
             missing = [n for n in names if not hasattr(config, n)]
             if missing or isinstance(config, type):
                 raise ConfigError(
-                    f"invalid {cls.__name__} config {type(config).__name__}; valid: a "
-                    f"{want.__name__}, or an object with its fields (missing: {', '.join(missing)})"
+                    f"invalid {cls.__name__} config {type(config).__name__}; valid: "
+                    f"{want.__name__} or an object with all its fields (missing: "
+                    f"{', '.join(missing) or 'an instance'})"
                 )
             config = want(**{n: getattr(config, n) for n in names})
-        if is_dataclass(config):
-            check_tree(config, "method.")  # finite numbers, no unknown keys, then validate()
+        check_tree(config, "method.")
         return config
 
     @classmethod
