@@ -3,65 +3,22 @@
 Every outer step re-solves the reference plan's problem (:mod:`amex.plan.optimizer`: squared
 joint accelerations, final TCP position, axis and their velocities, plus a collision term) from
 the measured state ``(q, q_dot)`` to the current goal ``(g, axis)`` among the current obstacles,
-warm-started from the previous solution shifted by the time elapsed, and sends a joint target to
-the inner controller (a joint PD task with the shared ``controller.joint`` gains, original
-100/100). DESIGN.md, "The original experiment", CR: shrinking horizon ending at T_ref, warm start
-shifted by one step, <= 20 Newton iterations, collision margin 0.1 m (x scale 0.2 = 0.02 m) at
-weight 1, no replanning below 2 steps.
+on the shrinking horizon of knots ``t + k dt_knot``, ``k = 0..T``, ``T = round((T_ref - t) /
+dt_knot)``, warm-started from the previous solution resampled at the new knots. It sends the
+plan's state at the middle of the held outer period as a joint target, ``q* = q(t + dt/2)``,
+``q_dot* = (q(t + dt) - q(t)) / dt``, for a joint PD task of the inner controller (the shared
+``controller.joint`` gains). Below ``min_steps`` knots it holds the final knot; after T_ref it
+replans on a receding ``tail_horizon`` and sends that plan's final knot.
 
-Horizon. At time t the knots are ``t + k dt_knot``, ``k = 0..T`` with ``T = round((T_ref - t) /
-dt_knot)`` (the original's shrinking horizon: the plan always ends at T_ref). Knot 0 is the
-measured ``q`` and ``q_-1 = q - dt_knot q_dot``, so the plan starts with the measured velocity.
-
-Warm start. The previous solution (or, at the first step, the reference plan's joint trajectory)
-resampled at the new knot times, clamped to its last knot: with ``dt_knot`` equal to the outer
-period this is :func:`~amex.plan.optimizer.shift_warm_start`, the original's shift by one step.
-
-Command. The plan's state at the middle of the outer period the command is held for: position
-``q* = q(t + dt/2)`` and velocity ``q_dot* = (q(t + dt) - q(t)) / dt``, exact for the knots'
-piecewise-linear interpolation (with dt_knot = dt: ``(q_0 + q_1) / 2`` and ``(q_1 - q_0) / dt``).
-A held target is a zero-order hold: the midpoint keeps the joint PD's error centred on the
-plan over the period. The next knot ``q_1`` with the plan's velocity there (the obvious choice)
-leads the robot by half a period: with the original gains (Kp = Kd = 100) the PD then pushes
-at the start of every period and brakes at its end, a ripple of about ``q_dot + q_ddot`` per
-period. Measured sums of squared accelerations: Task 0 87 -> 66, Task 1 (10 environments)
-157 -> 118; the arrival is ~0.2 s later. No task-space target is sent (``Command.y`` is None).
-
-End of the horizon. While ``T < min_steps`` (original: 2) and ``t < T_ref``, CR stops
-replanning and holds the last solution's final knot at zero velocity (the original's behaviour,
-which it kept for ever). From ``t >= T_ref`` on (the episode still runs: the goal is not reached,
-from a lag, a goal that moved late or an obstacle in the way) CR keeps replanning on a receding
-horizon of ``tail_horizon`` seconds (default 0.5 s) towards the current goal among the current
-obstacles, and sends that plan's final knot at zero velocity: the original's hold, with a final
-knot that follows the goal and the obstacles. Sending the receding plan's next knot instead
-(a model-predictive approach) was measured worse on Task 3, where about 10 of the 150 goals
-are blocked by the obstacle or out of reach and the arm stops at the margin: the next knot is
-always close to the arm, so the inner collision task pushed it 1-2 cm further from the goal
-than the hold does (success 0.920 against 0.933). ``tail_horizon = 0`` holds the last final
-knot for ever (the original).
-
-Costs: two deviations from the original, both measured on Task 3. (1) The inner controller's
-collision task (Kp 2500 at weight 10) enforces the 0.02 m margin almost as a hard constraint;
-at weight 1 the plan's final knot sits inside the margin wherever the goal is close to the
-obstacle, the controller pushes the arm out and it ends 1-2 cm further from the goal than
-planned. Weight 10 keeps plan and controller in agreement. (2) The axis error is dimensionless
-while position errors shrink with the scene (scale 0.2), so the original's balance between them
-needs the axis weight times scale^2 (1e4 -> 400; the position weight stays the reference plan's
-1e4); the top-down axis may then tilt a little to reach a goal beside the obstacle. Task 3
-success 0.933 with the original weights, 0.960 with these (150 environments).
-
-Real-time mode. ``realtime=False`` iterates until converged (relative cost decrease or step
-below ``tolerance``), at most ``max_iterations`` (the original: 20) per step. ``realtime=True``
-caps every step at ``realtime_iterations`` (e.g. 2): a real-time iteration scheme, where the
-warm start carries the unfinished optimization over to the next step and a step's cost is
-bounded by a fixed number of banded solves.
+The choices (midpoint command, the tail after T_ref, the two cost deviations from the original,
+the real-time mode) and their measurements are in ``docs/methods/cr.md``.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -124,6 +81,22 @@ class CRConfig(MethodConfig):
     min_steps: int = 2  # [knots] original
     tail_horizon: float = 0.5  # [s]; 0: hold the final knot (original)
 
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for solver and horizon settings CR cannot run with."""
+        if not (math.isfinite(self.knot_dt) and self.knot_dt > 0.0):
+            raise ConfigError.invalid("method.knot_dt", self.knot_dt, "> 0 [s]")
+        for key in ("max_iterations", "realtime_iterations", "min_steps"):
+            value = getattr(self, key)
+            if int(value) != value or value < 1:
+                raise ConfigError.invalid(f"method.{key}", value, "an integer >= 1")
+        if not (self.tolerance >= 0.0 and self.damping > 0.0):
+            values = (self.tolerance, self.damping)
+            raise ConfigError.invalid(
+                "method.tolerance, damping", values, "tolerance >= 0, damping > 0"
+            )
+        if not (math.isfinite(self.tail_horizon) and self.tail_horizon >= 0.0):
+            raise ConfigError.invalid("method.tail_horizon", self.tail_horizon, ">= 0 [s]")
+
 
 class CRStatus(NamedTuple):
     """What one CR step did.
@@ -146,56 +119,51 @@ class CRStatus(NamedTuple):
     solve_time: float
 
 
+class JointTarget(NamedTuple):
+    """CR's joint-space target (named as AMEX's and the DMP's task-space targets).
+
+    Attributes:
+        q_star: joint position target q*, shape (n,) [rad].
+        qd_star: joint velocity target q_dot*, shape (n,) [rad/s].
+    """
+
+    q_star: np.ndarray
+    qd_star: np.ndarray
+
+
 class CR(Method):
     """Continuous replanning (see the module notes).
 
     Args:
-        robot: the arm (kinematics and collision capsules of the optimizer).
-        reference_q: the reference plan's joint trajectory, shape (N + 1, 7) [rad]; the first
-            step's warm start.
-        reference_dt: its sample period [s]; T_ref = N reference_dt.
+        plan: the reference plan; its joint trajectory ``plan.q`` (shape (N + 1, n) [rad],
+            ``plan.dt`` apart) is the first step's warm start, its metric diag(H) that of the
+            acceleration cost (empty: identity).
+        config: CR settings (None: :class:`CRConfig`'s defaults).
         dt: outer (control) period [s]: the command is the plan at t + dt / 2 (module notes).
-        config: CR settings (default :class:`CRConfig`).
-        metric: joint metric diag(H) of the acceleration cost, the reference plan's (empty:
-            identity).
+        robot: the arm (kinematics and collision capsules of the optimizer); required.
 
     Raises:
-        ConfigError: for invalid settings or a reference of the wrong shape.
+        ConfigError: for invalid settings, a missing robot or a plan without its joints.
     """
 
     name = "cr"
     config_class = CRConfig
+    needs_robot = True
+    config: CRConfig
+    robot: RobotModel
 
     def __init__(
         self,
-        robot: RobotModel,
-        reference_q: np.ndarray,
-        reference_dt: float,
-        dt: float,
+        plan: ReferencePlan,
         config: CRConfig | None = None,
-        metric: tuple[float, ...] = (),
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
     ) -> None:
         from amex.plan.optimizer import TrajectoryCosts, batch_kinematics
 
-        c = CRConfig() if config is None else config
-        Q = np.array(reference_q, dtype=float)
-        if Q.ndim != 2 or Q.shape[1] != robot.nv or len(Q) < 2 or not np.isfinite(Q).all():
-            raise ConfigError.invalid(
-                "reference_q shape", Q.shape, f"finite (N + 1 >= 2, {robot.nv})"
-            )
-        for key, value in (("reference_dt", reference_dt), ("dt", dt), ("knot_dt", c.knot_dt)):
-            if not (math.isfinite(value) and value > 0.0):
-                raise ConfigError.invalid(key, value, "> 0 [s]")
-        for key in ("max_iterations", "realtime_iterations", "min_steps"):
-            value = getattr(c, key)
-            if int(value) != value or value < 1:
-                raise ConfigError.invalid(key, value, "an integer >= 1")
-        if not (c.tolerance >= 0.0 and c.damping > 0.0):
-            raise ConfigError.invalid(
-                "tolerance, damping", (c.tolerance, c.damping), "tolerance >= 0, damping > 0"
-            )
-        if not (math.isfinite(c.tail_horizon) and c.tail_horizon >= 0.0):
-            raise ConfigError.invalid("tail_horizon", c.tail_horizon, ">= 0 [s]")
+        super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
+        c, robot, metric = self.config, self.robot, plan.metric
+        Q = np.array(plan.q, dtype=float)
         self.costs = TrajectoryCosts(
             acceleration=c.acceleration,
             final_position=c.final_position,
@@ -209,27 +177,14 @@ class CR(Method):
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.reference_q = Q
-        self.reference_dt = float(reference_dt)
+        self.reference_dt = float(plan.dt)
         self.duration = (len(Q) - 1) * self.reference_dt
-        self.dt = float(dt)
         self.knot_dt = float(c.knot_dt)
         self.iterations = int(c.realtime_iterations if c.realtime else c.max_iterations)
         self.tolerance, self.damping = float(c.tolerance), float(c.damping)
         self.min_steps = int(c.min_steps)
         self.tail_steps = int(round(c.tail_horizon / self.knot_dt))
         self.restart()
-
-    @classmethod
-    def from_plan(
-        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
-    ) -> CR:
-        """See :meth:`Method.from_plan`; ``robot`` is required (the optimizer's model)."""
-        if robot is None:
-            raise ConfigError("CR needs the robot model: from_plan(plan, config, dt, robot)")
-        if not isinstance(config, CRConfig):  # any object with CRConfig's fields
-            names = {f.name for f in fields(CRConfig)}
-            config = CRConfig(**{k: getattr(config, k) for k in names if hasattr(config, k)})
-        return cls(robot, plan.q, plan.dt, dt, config, plan.metric)
 
     # ----------------------------------------------------------------------------- state
     def restart(self) -> None:
@@ -315,13 +270,13 @@ class CR(Method):
         )
         return self._status
 
-    def target(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint target ``(q*, q_dot*)`` of the current plan (module notes), shapes (7,)."""
+    def target(self) -> JointTarget:
+        """Joint target ``(q*, q_dot*)`` of the current plan (module notes), shapes (n,)."""
         if self._status.mode != "shrink":  # hold, or the tail's final approach
-            return self._knots[-1].copy(), np.zeros(self._knots.shape[1])
+            return JointTarget(self._knots[-1].copy(), np.zeros(self._knots.shape[1]))
         u = self.dt / self._knots_dt
         q = resample_knots(self._knots, 0.0, u / 2.0, 3)  # q(t), q(t + dt / 2), q(t + dt)
-        return q[1], (q[2] - q[0]) / self.dt
+        return JointTarget(q[1], (q[2] - q[0]) / self.dt)
 
     # ----------------------------------------------------------------------------- Method
     def reset(self, obs: Observation) -> None:

@@ -187,7 +187,7 @@ def observation(t: float, y: np.ndarray, goal: np.ndarray) -> Observation:
 
 
 @pytest.mark.parametrize(("cls", "config"), [(DMP, DMPConfig()), (DMPPhaseStop, DMPPSConfig())])
-def test_from_plan_and_step_follow_the_plan(cls, config):
+def test_built_on_a_plan_each_step_follows_it(cls, config):
     method = cls(make_plan(), config, 0.01)
     assert method.name == config.name
     assert cls.config_class is type(config)

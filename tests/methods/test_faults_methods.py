@@ -63,8 +63,8 @@ def _command(method, obs):
 @pytest.mark.parametrize("field", ARRAYS)
 def test_nan_into_a_step_never_poisons_the_method(plan, robot, name, field):
     cls = METHODS[name]
-    clean = cls.from_plan(plan, cls.config_class(), DT, robot)
-    hit = cls.from_plan(plan, cls.config_class(), DT, robot)
+    clean = cls(plan, cls.config_class(), DT, robot)
+    hit = cls(plan, cls.config_class(), DT, robot)
     for method in (clean, hit):
         method.reset(_obs(plan, robot, 0))
         _command(method, _obs(plan, robot, 0))

@@ -103,7 +103,7 @@ def test_newton_stops_without_an_update_at_an_optimum_and_agrees_with_levenberg(
     goal = plan_goal(config.scene(), 1, plan.y[0, :3])
     problem = TrajectoryProblem(
         robot.q0, np.zeros(7), 400, 0.01, goal, np.array(config.scenario.goal_axis),
-        costs=CROriginal.from_plan(plan, config.method_config(), 0.01, robot).costs,
+        costs=CROriginal(plan, config.method_config(), 0.01, robot).costs,
     )  # fmt: skip
     levenberg = solve_trajectory(robot, problem, q_init=plan.q, tolerance=1e-9, max_iterations=50)
     newton = solve_trajectory_newton(robot, problem, q_init=levenberg.q)
@@ -113,7 +113,7 @@ def test_newton_stops_without_an_update_at_an_optimum_and_agrees_with_levenberg(
 
 def test_original_cr_shrinks_its_horizon_and_ends_the_episode_at_t_ref(original):
     config, ctx = original
-    cr = CROriginal.from_plan(ctx.plan, config.method_config(), 0.01, ctx.robot)
+    cr = CROriginal(ctx.plan, config.method_config(), 0.01, ctx.robot)
     goal = np.r_[ctx.plan.y[-1, :3], config.scenario.goal_axis]
     q, steps = ctx.plan.q, []
     for k in range(400):
