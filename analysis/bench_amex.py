@@ -13,8 +13,9 @@ import time
 
 import numpy as np
 
+from amex.core.types import Observation
 from amex.methods.amex import AMEX
-from amex.methods.base import Observation
+from amex.plan.reference import ReferencePlan
 
 T_REF, DT, N = 4.0, 0.01, 400
 
@@ -36,7 +37,7 @@ def step_times(
     """Wall times of every ``AMEX.step`` call [s], and whether each ran Eq. 7-9 (s < 1)."""
     rng = np.random.default_rng(seed)
     Y = reference_6d()
-    amex = AMEX(Y, T_REF, DT)
+    amex = AMEX(ReferencePlan.from_path(Y, T_REF), dt=DT)
     zeros7 = np.zeros(7)
     times, adaptive = [], []
     for _ in range(n_episodes):

@@ -15,8 +15,9 @@ import time
 
 import numpy as np
 
-from amex.methods.base import Observation
+from amex.core.types import Observation
 from amex.methods.dmp import DMP
+from amex.plan.reference import ReferencePlan
 
 T_REF = 4.0
 DT_REF = 0.01
@@ -41,9 +42,9 @@ def _position_error(t: np.ndarray, y: np.ndarray) -> float:
 
 
 def _ours_error(reference: np.ndarray, dt: float) -> float:
-    dmp = DMP(reference, T_REF, dt)
+    dmp = DMP(ReferencePlan.from_path(reference, T_REF), dt=dt)
     n = round(T_REF / dt)
-    y = np.array([dmp.y] + [dmp.update(dmp.g_ref, dt).y for _ in range(n)])
+    y = np.array([dmp.y] + [dmp.update(dmp.g_ref, dt).y_star for _ in range(n)])
     return _position_error(np.arange(n + 1) * dt, y)
 
 
@@ -110,7 +111,7 @@ def compare_with_movement_primitives(
 
     t_ref = np.arange(round(T_REF / DT_REF) + 1) * DT_REF
     reference = reference_at(t_ref)
-    ours = DMP(reference, T_REF, dt)
+    ours = DMP(ReferencePlan.from_path(reference, T_REF), dt=dt)
     theirs = TheirDMP(6, execution_time=T_REF, dt=dt, n_weights_per_dim=100)
     theirs.imitate(t_ref, reference, regularization_coefficient=1e-7)
     theirs.configure(start_y=reference[0], goal_y=reference[-1])

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from amex.methods.amex import AMEX
+from amex.plan.reference import ReferencePlan
 
 from . import default_out
 
@@ -65,7 +66,7 @@ def plot_fig2(out_dir: Path) -> list[Path]:
 
 
 def _draw(plt, Y: np.ndarray, path: Path, label: str) -> Path:
-    amex = AMEX(Y, T_REF, DT)
+    amex = AMEX(ReferencePlan.from_path(Y, T_REF), dt=DT)
     g_ref = Y[-1]
     offsets = [np.array([0.25, 0.45]), np.array([0.45, -0.25]), np.array([-0.35, -0.2])]
     velocities = [np.array([0.08, 0.10]), np.array([0.12, -0.06])]

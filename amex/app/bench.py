@@ -52,7 +52,7 @@ def bench_inner_step(config: RunConfig, steps: int = 4000) -> list[float]:
     sim = Simulation(robot, scenario, config.inner_hz)
     collision = CollisionModel(robot, scenario.obstacle_radii)
     osc = OperationalSpaceController(robot, config.gains(), collision)
-    method = METHODS["track"].from_plan(plan, METHODS["track"].config_class(), 0.01, robot)
+    method = METHODS["track"](plan, METHODS["track"].config_class(), 0.01, robot)
     pdata = robot.model.createData()
     from amex.methods.base import Observation
 
@@ -117,7 +117,7 @@ def bench_method_steps(name: str, task: int = 3, envs: range = range(1)) -> list
 
     config = _config(name, task)
     context = prepare(config)
-    method = METHODS[name].from_plan(context.plan, config.method, 0.01, context.robot)
+    method = METHODS[name](context.plan, config.method, 0.01, context.robot)
     times: list[float] = []
     original = method.step
 

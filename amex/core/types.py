@@ -1,15 +1,19 @@
-"""The small value types shared by methods and the controller (numpy only, no simulator).
+"""The small value types shared by methods, the controller and the loop (numpy only).
 
 Kept apart from :mod:`amex.control` so that :mod:`amex.methods` imports without Pinocchio, coal
-or MuJoCo: a method can drive any robot loop.
+or MuJoCo: a method can drive any robot loop. A method reads an :class:`Observation` and answers
+with a :class:`Command`.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import NamedTuple
+import math
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
+
+from amex.core.errors import InputError
 
 
 @dataclass
@@ -38,6 +42,64 @@ class Command(NamedTuple):
     yd: np.ndarray | None = None
     q: np.ndarray | None = None
     qd: np.ndarray | None = None
+
+
+def require_finite(**values: Any) -> None:
+    """Raise :class:`InputError` naming the first argument that holds a NaN or an infinity.
+
+    Fast for the small vectors of an outer step (one dot product each); call it before any state
+    changes, so that a rejected input leaves the caller as it was.
+    """
+    for name, value in values.items():
+        a = np.ravel(value)
+        if not math.isfinite(float(a @ a)) and not np.isfinite(a).all():  # (huge values pass)
+            raise InputError(f"non-finite {name}: {np.array2string(a, threshold=8)}")
+
+
+@dataclass(frozen=True)
+class Observation:
+    """What a method measures at one outer step.
+
+    Attributes:
+        t: time since the episode started [s].
+        q: joint positions, shape (7,) [rad].
+        qd: joint velocities, shape (7,) [rad/s].
+        y: task state (TCP position [m], TCP z-axis), shape (6,).
+        yd: task velocity, shape (6,).
+        goal: current goal g in the same task space, shape (6,).
+        obstacles: obstacle centres, shape (k, 3) [m].
+        obstacle_radii: obstacle radii, shape (k,) [m].
+    """
+
+    t: float
+    q: np.ndarray
+    qd: np.ndarray
+    y: np.ndarray
+    yd: np.ndarray
+    goal: np.ndarray
+    obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    obstacle_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    def __post_init__(self) -> None:
+        """Reject non-finite values where they enter: no method ever sees one (InputError)."""
+        try:  # one vectorized test (~3 us); the named check below only when it fails
+            parts = [self.q, self.qd, self.y, self.yd, self.goal, self.obstacle_radii]
+            finite = math.isfinite(self.t) and bool(
+                np.isfinite(np.concatenate([*parts, np.ravel(self.obstacles)])).all()
+            )
+        except (TypeError, ValueError):
+            finite = False
+        if not finite:
+            require_finite(
+                t=self.t,
+                q=self.q,
+                qd=self.qd,
+                y=self.y,
+                yd=self.yd,
+                goal=self.goal,
+                obstacles=self.obstacles,
+                obstacle_radii=self.obstacle_radii,
+            )
 
 
 #: The parts of a :class:`Command` and the dimension each must have: task (6) or joints (n).

@@ -85,7 +85,7 @@ def preflight(config: RunConfig) -> None:
     reference_costs(robot, config.plan)
     name = config.method.name
     try:
-        get_method(name).from_plan(
+        get_method(name, config.implementation)(
             stand_in_plan(robot, config), config.method_config(), 1.0 / config.outer_hz, robot
         )
     except ConfigError as e:
@@ -167,7 +167,7 @@ def setup(config: RunConfig, context: RunContext) -> EpisodeSetup:
 def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> EpisodeResult:
     """Environment ``env`` of ``setup``'s task with its method; logged as MCAP to ``log_path``."""
     context = setup.context
-    method = setup.method.from_plan(context.plan, setup.params, setup.outer_dt, context.robot)
+    method = setup.method(context.plan, setup.params, setup.outer_dt, context.robot)
     scenario = make_scenario(
         setup.scene, setup.task, setup.seed, env, context.plan.y[0, :3], context.plan.duration
     )

@@ -2,13 +2,17 @@
 
 ``METHODS`` maps each method's name (its module name and Hydra ``method=`` option) to its class.
 
+Every method is built the same way, ``Cls(plan, config, dt, robot)`` (:class:`Method`).
+
 Methods from other packages join the registry through the entry-point group ``amex.methods``
 (``name = "package.module:Class"`` in the package's ``pyproject.toml``): the class must subclass
 :class:`Method`, with ``name`` and its config class's default ``name`` equal to the entry point's
-name. Such a method is then ``method=<name>`` on the command line, with its config dataclass's
-defaults (override fields as ``method.<field>=...``), in sweeps, tables and ``make bench``. A
-plugin that fails to load, or whose name is taken, is skipped with a warning saying why, so it
-cannot stop the built-in methods from running.
+name, and take the constructor arguments above, passing them to ``super().__init__`` (which
+checks them; the config's own ``validate()`` holds the method's range checks). Such a method is
+then ``method=<name>`` on the command line, with its config dataclass's defaults (override fields
+as ``method.<field>=...``), in sweeps, tables and ``make bench``. A plugin that fails to load, or
+whose name is taken, is skipped with a warning saying why, so it cannot stop the built-in methods
+from running.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from amex.methods.original.amex import AMEXOriginal
 from amex.methods.original.cr import CROriginal
 from amex.methods.original.dmp import DMPOriginal
 from amex.methods.track import Track, TrackConfig
+from amex.plan.reference import ReferencePlan
 
 METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}
 BUILTIN_METHODS = frozenset(METHODS)
@@ -117,6 +122,7 @@ __all__ = [
     "Method",
     "MethodConfig",
     "Observation",
+    "ReferencePlan",
     "Track",
     "TrackConfig",
     "get_method",

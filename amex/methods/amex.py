@@ -1,77 +1,24 @@
 """Adaptive Motion Execution (AMEX): the paper's Algorithm 1 with Eq. 7, 8 and 9.
 
-Plan. The reference samples ``tau_hat_ref(k dt_ref)`` (N + 1 over T_ref) are reparametrized over
-the phase s in [0, 1], ``tau_ref(s) = tau_hat_ref(s T_ref)``, as a quadratic B-spline
-(:meth:`~amex.plan.spline.QuadraticBSpline.fit`, interpolating by default). The current plan is
-``tau_plan(s~) = tau_ref(s~) + p + (s~ - 1) q`` (:class:`~amex.plan.spline.WarpedSpline`): every
-Eq. 7 update adds an affine function of s~, so the plan is always the reference plus one affine
-offset (on the spline's control points: an offset affine in their Greville abscissae), and Eq. 7
-is applied exactly, in O(m). ``Delta s_ref = dt / T_ref``.
+The reference samples are reparametrized over the phase s in [0, 1] as a quadratic B-spline
+``tau_ref(s)``; the current plan is ``tau_plan(s~) = tau_ref(s~) + p + (s~ - 1) q``
+(:class:`~amex.plan.spline.WarpedSpline`), ``Delta s_ref = dt / T_ref``. Each outer step, with the
+measured task state y and goal g (Algorithm 1, steps 2-4):
 
-Phase convention: after an update, s is the phase of the measured state (Eq. 7 puts y at
-``tau_plan(s)``), and the command y* aims one reference step ahead, at ``s_t = min(s + Delta s_ref,
-1)``. Update k, with measured task state y and goal g (Algorithm 1, steps 2-4):
+* Eq. 8, phase: ``s += Delta s_ref * clip(delta_g * delta_y, rate_min, rate_max)`` with
+  ``delta_g = ||g_ref - tau_ref(s_t,prev)|| / ||g - y||`` and
+  ``delta_y = ||y - y_prev|| / ||y*_prev - y_prev||``; the first ``warmup_steps`` updates add
+  Delta s_ref.
+* Eq. 7, plan: ``tau_plan += Delta g + (Delta g - Delta y)(s~ - 1) / (1 - s)`` with
+  ``Delta y = y - tau_plan(s)`` and ``Delta g = g - tau_plan(1)``, so that ``tau_plan(s) = y`` and
+  ``tau_plan(1) = g``.
+* Eq. 9, target: ``y* = y + ||tau_ref(s_t) - tau_ref(s)|| d``, d the unit direction of the plan
+  over the step (``eq9="secant"``) or its tangent at s (``"tangent"``), and
+  ``y_dot* = (y* - y) / dt``; once s reaches 1, a first-order approach to g.
 
-1. Phase, Eq. 8. k = 0: s = 0 (nothing executed yet). The next ``warmup_steps`` updates:
-   ``s += Delta s_ref`` (as the original: at s = 0 the reference is at rest, so the first commanded
-   steps are ~0 and their ratio delta_y meaningless). Then
-   ``s += Delta s_ref * clip(delta_g * delta_y, rate_min, rate_max)`` with
-   ``delta_g = ||g_ref - tau_ref(s_t,prev)|| / ||g - y||`` and
-   ``delta_y = ||y - y_prev|| / ||y*_prev - y_prev||`` (actual over commanded step). The paper's
-   ``tau_ref(s)`` is read at ``s_t,prev``, the phase the previous command aimed at, i.e. where
-   y should now be: with the previous phase instead, a perfectly executed reference would give
-   ``delta_g > 1`` every step and the phase would run ahead of the robot.
-2. Plan, Eq. 7 at the new s: ``Delta y = y - tau_plan(s)``, ``Delta g = g - tau_plan(1)``; the
-   plan gains ``Delta g + (Delta g - Delta y)(s~ - 1)/(1 - s)``, so afterwards ``tau_plan(s) = y``
-   and ``tau_plan(1) = g`` (to rounding, ~1e-15). The paper writes ``Delta g = g - g_prev``;
-   ``g - tau_plan(1)`` equals it whenever the invariant held one step before, and also brings a
-   goal that differs from g_ref before the start (Fig. 2a) into the plan.
-3. Target, Eq. 9: y* moves along the warped plan by the reference's progress of one step.
-   ``eq9="tangent"`` is Eq. 9 as written, ``y* = y + Delta s_ref ||tau_ref'(s)|| d`` with d the
-   unit tangent ``tau_plan'(s) / ||.||`` (analytic: ``tau_ref'(s) + q``). ``eq9="secant"`` (the
-   default) takes both derivatives as differences over the step, ``d`` the unit vector of
-   ``tau_plan(s_t) - tau_plan(s)`` and the length ``||tau_ref(s_t) - tau_ref(s)||``, as the
-   original also used finite differences. Only the secant makes the paper's claim hold exactly:
-   with a fixed goal and perfect execution, AMEX reproduces the reference sample by sample and s
-   advances by exactly Delta s_ref (the tangent form commits an O(Delta s^2) error per step,
-   ~4e-3 over a unit-size motion, which the phase then has to absorb). The velocity target is
-   the same motion per second: ``y_dot* = (y* - y) / dt``, i.e. speed
-   ``||tau_ref'(s)|| / T_ref`` (or its secant version) along d, since
-   ``Delta s_ref / dt = 1 / T_ref``. With the default inner gains (Kp 1, Kd 100) the OSC tracks
-   mostly this velocity.
-
-Guards (none are in the paper or the original code):
-
-* ``||g - y|| <= eps_goal`` (Eq. 8 divides by it): the robot is at the goal, ``delta_g :=
-  rate_max`` (finish the phase as fast as allowed).
-* ``||y*_prev - y_prev|| <= eps_step`` (a zero commanded step, and before the first command):
-  ``delta_y := 1``, there is no evidence of lag.
-* Bounded phase step: ``delta_g * delta_y`` is clipped to ``[rate_min, rate_max]``; with
-  ``rate_min >= 0`` the phase never decreases.
-* No overshoot: the step length is capped at ``||g - y||``. Near the end of a rest-to-rest
-  reference the remaining plan can be shorter than the reference's step; without the cap the
-  robot circles the goal while the phase stalls.
-* Zero direction (``||d|| <= eps_tangent`` before normalizing): d points at the goal, or the
-  step is 0 if the robot is at the goal.
-* The reference has arrived: once ``||g_ref - tau_ref(s_t)|| <= end_fraction ||g_ref -
-  tau_ref(0)||`` the phase ends (next item). A rest-to-rest reference's remaining distance
-  vanishes like (1 - s)^3 and its speed like (1 - s)^2, so near the end delta_g -> 0 whenever
-  the robot is a little off (noise, a late goal change): without this the phase stalls at
-  s ~ 0.996 while Eq. 9 commands ~0 motion (measured: with 10 um noise per step the robot then
-  drifts for ever). With 1e-4 a perfectly executed reference is reproduced up to its last
-  ~2 % of phase (24 um from g in the benchmark); 0 switches the guard off (the paper as is).
-* ``s -> 1`` (Eq. 7 divides by 1 - s): once the previous command aimed at phase 1 (its s_t = 1,
-  the plan's end g, or the reference had arrived), or the new phase reaches ``1 - end_margin``
-  (which bounds 1 / (1 - s)), s is set to 1 and AMEX runs the final approach, where Eq. 7 is no
-  longer applied (on [s, 1] the plan degenerates to the segment y -> g anyway, and Eq. 9's speed
-  to ``||tau_ref'(1)|| ~ 0``, which would leave a lagging robot short of the goal). It commands
-  ``y_dot* = v``, ``y* = y + dt v`` with ``v = approach_rate (g - y)`` capped at the reference's
-  peak speed: a first-order approach to the (possibly still moving) goal, ~0 when the plan was
-  executed well.
-
-The 6-D task of the benchmark (TCP position and TCP z-axis) is treated as one vector, as in the
-original; the inner controller tracks the raw axis rows. The step is O(m), independent of the
-number of spline control points (``analysis/bench_amex.py`` measures it).
+The phase convention, the guards (zero divisors, bounded phase step, no overshoot, the end of the
+phase) and the measurements behind them are in ``docs/methods/amex.md``. The step is O(m),
+independent of the number of spline control points.
 """
 
 from __future__ import annotations
@@ -82,9 +29,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from amex.core.errors import ConfigError
-from amex.core.types import PD, Command
-from amex.methods.base import Method, MethodConfig, Observation, require_finite
+from amex.core.types import PD, Command, Observation, require_finite
+from amex.methods.base import Method, MethodConfig, invalid
 from amex.plan.spline import QuadraticBSpline, WarpedSpline, max_sample_error
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
@@ -131,9 +77,27 @@ class AMEXConfig(MethodConfig):
     approach_rate: float = 5.0  # [1/s]
     eq9: str = "secant"
 
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for settings AMEX cannot run with (whatever the plan)."""
+        if not (self.n_control == 0 or self.n_control >= 3):
+            raise invalid("n_control", self.n_control, "0 or 3..N + 1 (the reference samples)")
+        if not (int(self.warmup_steps) == self.warmup_steps and self.warmup_steps >= 0):
+            raise invalid("warmup_steps", self.warmup_steps, "an integer >= 0")
+        if not 0.0 <= self.rate_min <= self.rate_max or not self.rate_max > 0.0:
+            raise invalid(
+                "rate_min, rate_max", (self.rate_min, self.rate_max), "0 <= min <= max, max > 0"
+            )
+        for key in ("eps_goal", "eps_step", "eps_tangent", "approach_rate", "end_fraction"):
+            if not getattr(self, key) >= 0.0:
+                raise invalid(key, getattr(self, key), ">= 0")
+        if self.eq9 not in EQ9_FORMS:
+            raise invalid("eq9", self.eq9, EQ9_FORMS)
+        if not 0.0 < self.end_margin < 1.0:
+            raise invalid("end_margin", self.end_margin, "in (0, 1)")
+
 
 class AMEXTarget(NamedTuple):
-    """AMEX's output of one update.
+    """AMEX's output of one update (target fields named as :class:`~amex.methods.dmp.DMPTarget`'s).
 
     Attributes:
         y_star: next task-space target y*, shape (m,).
@@ -154,12 +118,11 @@ class AMEX(Method):
     """Adaptive Motion Execution (the paper's Algorithm 1; see the module notes).
 
     Args:
-        reference: tau_hat_ref samples, equally spaced over [0, duration], shape (N + 1, m).
-        duration: T_ref [s].
+        plan: the reference; its task path ``plan.y`` (N + 1 samples of tau_hat_ref over T_ref,
+            shape (N + 1, m)) is used, e.g. ``ReferencePlan.from_path(y, duration)``.
+        config: :class:`AMEXConfig` (None: the defaults).
         dt: outer (control) period [s]; Delta s_ref = dt / T_ref.
-        **params: any :class:`AMEXConfig` AMEX parameter (n_control, warmup_steps, rate_min,
-            rate_max, eps_goal, eps_step, eps_tangent, end_margin, end_fraction, approach_rate,
-            eq9).
+        robot: not used.
 
     Attributes:
         reference: tau_ref over the phase, a quadratic B-spline.
@@ -172,48 +135,26 @@ class AMEX(Method):
     name = "amex"
     config_class = AMEXConfig
 
-    def __init__(self, reference: np.ndarray, duration: float, dt: float, **params: Any) -> None:
-        p = AMEXConfig()
-        names = set(AMEXConfig.param_names())
-        for key, value in params.items():
-            if key not in names:
-                raise ConfigError.invalid("amex parameter", key, sorted(names))
-            setattr(p, key, value)
-        Y = np.array(reference, dtype=float)
-        if Y.ndim != 2 or len(Y) < 3 or not np.all(np.isfinite(Y)):
-            raise ConfigError(
-                f"AMEX reference must be finite, shape (N + 1 >= 3, m); got {Y.shape}"
-            )
-        if not np.linalg.norm(Y[-1] - Y[0]) > 0.0:
-            raise ConfigError(
-                "AMEX reference must move: its first and last samples are equal, so Eq. 8's "
-                "delta_g would be 0 and the phase would never advance"
-            )
-        if not (math.isfinite(duration) and duration > 0.0):
-            raise ConfigError.invalid("duration", duration, "> 0 [s]")
-        if not 0.0 < float(dt) <= float(duration):
-            raise ConfigError.invalid("dt", dt, f"in (0, duration = {duration}] [s]")
-        if not (p.n_control == 0 or 3 <= p.n_control <= len(Y)):
-            raise ConfigError.invalid("n_control", p.n_control, f"0 or 3..{len(Y)}")
-        if not (int(p.warmup_steps) == p.warmup_steps and p.warmup_steps >= 0):
-            raise ConfigError.invalid("warmup_steps", p.warmup_steps, "an integer >= 0")
-        if not 0.0 <= p.rate_min <= p.rate_max or not p.rate_max > 0.0:
-            raise ConfigError.invalid(
-                "rate_min, rate_max", (p.rate_min, p.rate_max), "0 <= min <= max, max > 0"
-            )
-        for key in ("eps_goal", "eps_step", "eps_tangent", "approach_rate", "end_fraction"):
-            if not getattr(p, key) >= 0.0:
-                raise ConfigError.invalid(key, getattr(p, key), ">= 0")
-        if p.eq9 not in EQ9_FORMS:
-            raise ConfigError.invalid("eq9", p.eq9, EQ9_FORMS)
-        if not 0.0 < p.end_margin < 1.0:
-            raise ConfigError.invalid("end_margin", p.end_margin, "in (0, 1)")
+    needs_motion = True  # Eq. 8 measures progress as the reference's remaining distance
+    config: AMEXConfig
+
+    def __init__(
+        self,
+        plan: ReferencePlan,
+        config: AMEXConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
+    ) -> None:
+        super().__init__(plan, config, dt, robot)
+        p = self.config
+        Y = np.array(plan.y, dtype=float)
+        if not p.n_control <= len(Y):
+            raise invalid("n_control", p.n_control, f"0 or 3..{len(Y)} (the reference samples)")
 
         self.reference = QuadraticBSpline.fit(Y, p.n_control or None)
         self.fit_error = max_sample_error(self.reference, Y)
         self.plan = WarpedSpline(self.reference)
-        self.duration = float(duration)
-        self.dt = float(dt)
+        self.duration = float(plan.duration)
         self.ds_ref = self.dt / self.duration
         self.g_ref = self.reference.control_points[-1].copy()  # tau_ref(1)
         fine = np.linspace(0.0, 1.0, 4 * len(Y) + 1)
@@ -356,13 +297,6 @@ class AMEX(Method):
         return target
 
     # ----------------------------------------------------------------------------- Method
-    @classmethod
-    def from_plan(
-        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
-    ) -> AMEX:
-        """See :meth:`Method.from_plan`; the plan's 6-D tau_ref with the config's parameters."""
-        return cls(plan.y, plan.duration, dt, **config.params())
-
     def reset(self, obs: Observation) -> None:
         """See :meth:`Method.reset`: :meth:`restart` (the first update reads y_0, g_0)."""
         self.restart()
@@ -383,4 +317,3 @@ def target_internals(last: AMEXTarget | None, s: float) -> dict[str, Any]:
         return {"s": s, "delta_g": 1.0, "delta_y": 1.0, "y_star": None, "yd_star": None}
     return {"s": last.s, "delta_g": last.delta_g, "delta_y": last.delta_y,
             "y_star": last.y_star, "yd_star": last.yd_star}  # fmt: skip
-

@@ -1,19 +1,24 @@
 """Continuous replanning (CR, the paper's Section IV-A): trajectory optimization every outer step.
 
-Every outer step re-solves the reference plan's problem (:mod:`amex.plan.optimizer`) from the
-measured state ``(q, q_dot)`` to the current goal among the current obstacles, on the shrinking
-horizon ``T = round((T_ref - t) / dt_knot)`` knots, warm-started from the previous solution
-shifted by the time elapsed, and sends the joint target ``q* = q(t + dt/2)``,
-``q_dot* = (q(t + dt) - q(t)) / dt`` to the inner controller's joint task. Below ``min_steps``
-knots it holds the final knot; after T_ref it replans on a receding ``tail_horizon``. Horizon,
-command, costs and their measurements: docs/planner.md.
+Every outer step re-solves the reference plan's problem (:mod:`amex.plan.optimizer`: squared
+joint accelerations, final TCP position, axis and their velocities, plus a collision term) from
+the measured state ``(q, q_dot)`` to the current goal ``(g, axis)`` among the current obstacles,
+on the shrinking horizon of knots ``t + k dt_knot``, ``k = 0..T``, ``T = round((T_ref - t) /
+dt_knot)``, warm-started from the previous solution resampled at the new knots. It sends the
+plan's state at the middle of the held outer period as a joint target, ``q* = q(t + dt/2)``,
+``q_dot* = (q(t + dt) - q(t)) / dt``, for a joint PD task of the inner controller (the shared
+``controller.joint`` gains). Below ``min_steps`` knots it holds the final knot; after T_ref it
+replans on a receding ``tail_horizon`` and sends that plan's final knot.
+
+The choices (midpoint command, the tail after T_ref, the two cost deviations from the original,
+the real-time mode) and their measurements are in ``docs/methods/cr.md``.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -73,6 +78,22 @@ class CRConfig(CollisionWeights, MethodConfig):
     min_steps: int = 2  # [knots] original
     tail_horizon: float = 0.5  # [s]; 0: hold the final knot (original)
 
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for solver and horizon settings CR cannot run with."""
+        if not (math.isfinite(self.knot_dt) and self.knot_dt > 0.0):
+            raise ConfigError.invalid("method.knot_dt", self.knot_dt, "> 0 [s]")
+        for key in ("max_iterations", "realtime_iterations", "min_steps"):
+            value = getattr(self, key)
+            if int(value) != value or value < 1:
+                raise ConfigError.invalid(f"method.{key}", value, "an integer >= 1")
+        if not (self.tolerance >= 0.0 and self.damping > 0.0):
+            values = (self.tolerance, self.damping)
+            raise ConfigError.invalid(
+                "method.tolerance, damping", values, "tolerance >= 0, damping > 0"
+            )
+        if not (math.isfinite(self.tail_horizon) and self.tail_horizon >= 0.0):
+            raise ConfigError.invalid("method.tail_horizon", self.tail_horizon, ">= 0 [s]")
+
 
 class CRStatus(NamedTuple):
     """What one CR step did.
@@ -95,81 +116,63 @@ class CRStatus(NamedTuple):
     solve_time: float
 
 
+class JointTarget(NamedTuple):
+    """CR's joint-space target (named as AMEX's and the DMP's task-space targets).
+
+    Attributes:
+        q_star: joint position target q*, shape (n,) [rad].
+        qd_star: joint velocity target q_dot*, shape (n,) [rad/s].
+    """
+
+    q_star: np.ndarray
+    qd_star: np.ndarray
+
+
 class CR(Method):
     """Continuous replanning (see the module notes).
 
     Args:
-        robot: the arm (kinematics and collision capsules of the optimizer).
-        reference_q: the reference plan's joint trajectory, shape (N + 1, 7) [rad]; the first
-            step's warm start.
-        reference_dt: its sample period [s]; T_ref = N reference_dt.
+        plan: the reference plan; its joint trajectory ``plan.q`` (shape (N + 1, n) [rad],
+            ``plan.dt`` apart) is the first step's warm start, its metric diag(H) that of the
+            acceleration cost (empty: identity).
+        config: CR settings (None: :class:`CRConfig`'s defaults).
         dt: outer (control) period [s]: the command is the plan at t + dt / 2 (module notes).
-        config: CR settings (default :class:`CRConfig`).
-        metric: joint metric diag(H) of the acceleration cost, the reference plan's (empty:
-            identity).
+        robot: the arm (kinematics and collision capsules of the optimizer); required.
 
     Raises:
-        ConfigError: for invalid settings or a reference of the wrong shape.
+        ConfigError: for invalid settings, a missing robot or a plan without its joints.
     """
 
     name = "cr"
     config_class = CRConfig
+    needs_robot = True
+    config: CRConfig
+    robot: RobotModel
 
     def __init__(
         self,
-        robot: RobotModel,
-        reference_q: np.ndarray,
-        reference_dt: float,
-        dt: float,
+        plan: ReferencePlan,
         config: CRConfig | None = None,
-        metric: tuple[float, ...] = (),
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
     ) -> None:
         from amex.plan.optimizer import TrajectoryCosts, batch_kinematics
 
-        c = CRConfig() if config is None else config
-        Q = np.array(reference_q, dtype=float)
-        if Q.ndim != 2 or Q.shape[1] != robot.nv or len(Q) < 2 or not np.isfinite(Q).all():
-            raise ConfigError.invalid(
-                "reference_q shape", Q.shape, f"finite (N + 1 >= 2, {robot.nv})"
-            )
-        for key, value in (("reference_dt", reference_dt), ("dt", dt), ("knot_dt", c.knot_dt)):
-            if not (math.isfinite(value) and value > 0.0):
-                raise ConfigError.invalid(key, value, "> 0 [s]")
-        for key in ("max_iterations", "realtime_iterations", "min_steps"):
-            value = getattr(c, key)
-            if int(value) != value or value < 1:
-                raise ConfigError.invalid(key, value, "an integer >= 1")
-        if not (c.tolerance >= 0.0 and c.damping > 0.0):
-            raise ConfigError.invalid(
-                "tolerance, damping", (c.tolerance, c.damping), "tolerance >= 0, damping > 0"
-            )
-        if not (math.isfinite(c.tail_horizon) and c.tail_horizon >= 0.0):
-            raise ConfigError.invalid("tail_horizon", c.tail_horizon, ">= 0 [s]")
+        super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
+        c, robot, metric = self.config, self.robot, plan.metric
+        Q = np.array(plan.q, dtype=float)
         self.costs = TrajectoryCosts.from_weights(c, metric)
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.reference_q = Q
-        self.reference_dt = float(reference_dt)
+        self.reference_dt = float(plan.dt)
         self.duration = (len(Q) - 1) * self.reference_dt
-        self.dt = float(dt)
         self.knot_dt = float(c.knot_dt)
         self.iterations = int(c.realtime_iterations if c.realtime else c.max_iterations)
         self.tolerance, self.damping = float(c.tolerance), float(c.damping)
         self.min_steps = int(c.min_steps)
         self.tail_steps = int(round(c.tail_horizon / self.knot_dt))
         self.restart()
-
-    @classmethod
-    def from_plan(
-        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
-    ) -> CR:
-        """See :meth:`Method.from_plan`; ``robot`` is required (the optimizer's model)."""
-        if robot is None:
-            raise ConfigError("CR needs the robot model: from_plan(plan, config, dt, robot)")
-        if not isinstance(config, CRConfig):  # any object with CRConfig's fields
-            names = {f.name for f in fields(CRConfig)}
-            config = CRConfig(**{k: getattr(config, k) for k in names if hasattr(config, k)})
-        return cls(robot, plan.q, plan.dt, dt, config, plan.metric)
 
     # ----------------------------------------------------------------------------- state
     def restart(self) -> None:
@@ -255,13 +258,13 @@ class CR(Method):
         )
         return self._status
 
-    def target(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint target ``(q*, q_dot*)`` of the current plan (module notes), shapes (7,)."""
+    def target(self) -> JointTarget:
+        """Joint target ``(q*, q_dot*)`` of the current plan (module notes), shapes (n,)."""
         if self._status.mode != "shrink":  # hold, or the tail's final approach
-            return self._knots[-1].copy(), np.zeros(self._knots.shape[1])
+            return JointTarget(self._knots[-1].copy(), np.zeros(self._knots.shape[1]))
         u = self.dt / self._knots_dt
         q = resample_knots(self._knots, 0.0, u / 2.0, 3)  # q(t), q(t + dt / 2), q(t + dt)
-        return q[1], (q[2] - q[0]) / self.dt
+        return JointTarget(q[1], (q[2] - q[0]) / self.dt)
 
     # ----------------------------------------------------------------------------- Method
     def reset(self, obs: Observation) -> None:

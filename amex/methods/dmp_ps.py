@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from amex.core.errors import ConfigError
 from amex.core.scaling import scaled
-from amex.core.types import Command
-from amex.methods.base import Observation, require_finite
+from amex.core.types import Command, Observation, require_finite
 from amex.methods.dmp import DMP, DMPConfig, DMPTarget
+
+if TYPE_CHECKING:  # no simulator stack needed to use a method
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
 
 
 @dataclass
@@ -21,12 +22,11 @@ class DMPPSConfig(DMPConfig):
 
     Attributes:
         beta_ps: phase-stopping gain [1/m^2], in original units (:mod:`amex.core.scaling`: it
-            carries
-            scale^-2). The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)`` of its speed: 40 on the
-            original scene is 1e3 on the Panda's (scale 0.2), where a 1 cm tracking error slows it
-            by 9 %, 3 cm halves it, 10 cm divides it by 11, while the sub-millimetre lag of free
-            tracking costs < 0.1 %. Axis components enter unscaled (on the Panda's scene an axis
-            error of 0.01 counts like 1 cm).
+            carries scale^-2). The phase runs at ``1 / (1 + beta_ps ||y* - y||^2)`` of its
+            speed: 40 on the original scene is 1e3 on the Panda's (scale 0.2), where a 1 cm
+            tracking error slows it by 9 %, 3 cm halves it, 10 cm divides it by 11, while the
+            sub-millimetre lag of free tracking costs < 0.1 %. Axis components enter unscaled
+            (on the Panda's scene an axis error of 0.01 counts like 1 cm).
     """
 
     name: str = "dmp_ps"
@@ -42,23 +42,25 @@ class DMPPhaseStop(DMP):
     over a step. The transformation system is unchanged.
 
     Args:
-        reference: see :class:`DMP`.
-        duration: see :class:`DMP`.
+        plan: see :class:`DMP`.
+        config: :class:`DMPPSConfig` (None: the defaults, ``beta_ps`` in original units).
         dt: see :class:`DMP`.
-        beta_ps: phase-stopping gain [1/m^2].
-        **params: see :class:`DMP`.
+        robot: not used.
     """
 
     name = "dmp_ps"
     config_class = DMPPSConfig
+    config: DMPPSConfig
 
     def __init__(
-        self, reference: np.ndarray, duration: float, dt: float, beta_ps: float = 1e3, **params: Any
+        self,
+        plan: ReferencePlan,
+        config: DMPPSConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
     ) -> None:
-        if not (math.isfinite(beta_ps) and beta_ps >= 0.0):
-            raise ConfigError.invalid("beta_ps", beta_ps, ">= 0 [1/m^2]")
-        super().__init__(reference, duration, dt, **params)
-        self.beta_ps = float(beta_ps)
+        super().__init__(plan, config, dt, robot)
+        self.beta_ps = float(self.config.beta_ps)
         self._err = np.empty(self.n_dims)
 
     def phase_rate(self, y: np.ndarray) -> float:
@@ -78,4 +80,4 @@ class DMPPhaseStop(DMP):
     def step(self, obs: Observation) -> Command:
         """See :meth:`DMP.step`; the phase is also slowed by Eq. 2 with the measured ``obs.y``."""
         target = self._advance(obs.goal, self.dt, self.phase_rate(obs.y))
-        return Command(y=target.y, yd=target.yd)
+        return Command(y=target.y_star, yd=target.yd_star)

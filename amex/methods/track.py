@@ -7,8 +7,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from amex.core.types import PD, Command
-from amex.methods.base import Method, MethodConfig, Observation, require_finite
+from amex.core.types import PD, Command, Observation, require_finite
+from amex.methods.base import Method, MethodConfig
 
 if TYPE_CHECKING:  # no simulator stack needed to use a method
     from amex.plan.reference import ReferencePlan
@@ -29,25 +29,30 @@ class Track(Method):
 
     The goal is ignored: this is what executing a plan without adaptation does when the world
     changes, the reason the paper's methods exist.
+
+    Args:
+        plan: the reference; its task path ``plan.y``, shape (N + 1, m), ``plan.dt`` apart.
+        config: :class:`TrackConfig` (None: the defaults).
+        dt: outer period [s] (the reference is read at the observation's time).
+        robot: not used.
     """
 
     name = "track"
     config_class = TrackConfig
 
-    def __init__(self, reference: np.ndarray, dt_ref: float) -> None:
-        """Args: reference: tau_ref samples, shape (N + 1, 6); dt_ref: their period [s]."""
-        self.reference = np.asarray(reference, dtype=float)
-        self.dt_ref = float(dt_ref)
+    def __init__(
+        self,
+        plan: ReferencePlan,
+        config: TrackConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
+    ) -> None:
+        super().__init__(plan, config, dt, robot)
+        self.reference = np.asarray(plan.y, dtype=float)
+        self.dt_ref = float(plan.dt)
         self.velocity = np.gradient(self.reference, self.dt_ref, axis=0)
         self.velocity[-1] = 0.0
         self._index = 0
-
-    @classmethod
-    def from_plan(
-        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
-    ) -> Track:
-        """See :meth:`Method.from_plan`."""
-        return cls(plan.y, plan.dt)
 
     def reset(self, obs: Observation) -> None:
         """See :meth:`Method.reset`."""
@@ -62,7 +67,7 @@ class Track(Method):
         a = min(u - k, 1.0)
         self._index = k
         y = (1.0 - a) * self.reference[k] + a * self.reference[k + 1]
-        yd = self.velocity[k] if u < last else np.zeros(6)
+        yd = self.velocity[k] if u < last else np.zeros(self.reference.shape[1])
         return Command(y=y, yd=yd)
 
     def internals(self) -> dict[str, Any]:

@@ -13,7 +13,7 @@ from amex.plan.weights import CostWeights
 class ReferencePlan:
     """A joint trajectory planned in the obstacle-free reference scene and its task-space image.
 
-    Sample k is at time ``k * dt``; the plan lasts ``duration = (len(q) - 1) * dt``.
+    Sample k is at time ``k * dt``; the plan lasts ``duration = (len(y) - 1) * dt``.
 
     Attributes:
         q: joint trajectory, shape (N + 1, n) [rad]; ``q[0]`` is the start.
@@ -28,10 +28,37 @@ class ReferencePlan:
     dt: float
     metric: tuple[float, ...] = ()
 
+    @classmethod
+    def from_path(cls, y: np.ndarray, duration: float) -> ReferencePlan:
+        """A task-space-only plan: the samples ``y`` equally spaced over ``duration`` [s].
+
+        For using a method without the planner (e.g. AMEX on a 2-D path). The joint trajectory
+        is empty, shape (N + 1, 0): methods that replan in joint space (CR) refuse it. The
+        plan's ``duration`` is ``N * (duration / N)``, which may differ from ``duration`` in the
+        last bit.
+
+        Args:
+            y: tau_ref samples, shape (N + 1 >= 2, m).
+            duration: T_ref [s], > 0.
+
+        Raises:
+            ConfigError: ``y`` is not finite of shape (N + 1 >= 2, m), or ``duration`` <= 0.
+        """
+        import math
+
+        from amex.core.errors import ConfigError
+
+        path = np.array(y, dtype=float)
+        if path.ndim != 2 or len(path) < 2 or not np.isfinite(path).all():
+            raise ConfigError.invalid("path shape", path.shape, "finite (N + 1 >= 2, m)")
+        if not (math.isfinite(duration) and duration > 0.0):
+            raise ConfigError.invalid("duration", duration, "> 0 [s]")
+        return cls(q=np.zeros((len(path), 0)), y=path, dt=float(duration) / (len(path) - 1))
+
     @property
     def duration(self) -> float:
         """T_ref [s]."""
-        return (len(self.q) - 1) * self.dt
+        return (len(self.y) - 1) * self.dt
 
     @property
     def goal(self) -> np.ndarray:
@@ -41,7 +68,7 @@ class ReferencePlan:
     @property
     def times(self) -> np.ndarray:
         """Sample times, shape (N + 1,) [s]."""
-        return np.arange(len(self.q)) * self.dt
+        return np.arange(len(self.y)) * self.dt
 
 
 @dataclass

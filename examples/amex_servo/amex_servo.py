@@ -14,11 +14,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+from amex.core.errors import ConfigError
 from amex.core.types import Command
-from amex.methods import Method, MethodConfig, Observation
+from amex.methods import Method, MethodConfig, Observation, ReferencePlan
+
+if TYPE_CHECKING:
+    from amex.robot import RobotModel
 
 
 @dataclass
@@ -32,28 +37,37 @@ class ServoConfig(MethodConfig):
     """
 
     name: str = "servo"
-    speed: float = 0.1
-    accel: float = 0.5
-    approach_rate: float = 2.0
+    speed: float = 0.1  # [m/s]
+    accel: float = 0.5  # [m/s^2]
+    approach_rate: float = 2.0  # [1/s]
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` unless the speeds are positive (checked before a run)."""
+        for key in ("speed", "accel", "approach_rate"):
+            if not getattr(self, key) > 0:
+                raise ConfigError.invalid(f"method.{key}", getattr(self, key), "> 0")
 
 
 class Servo(Method):
-    """Straight-line servoing to the goal (module notes)."""
+    """Straight-line servoing to the goal (module notes).
+
+    Built like every method, ``Servo(plan, config, dt, robot)``; ``Method.__init__`` checks the
+    arguments (and runs ``ServoConfig.validate``). The plan and the robot are not used.
+    """
 
     name = "servo"
     config_class = ServoConfig
+    config: ServoConfig
 
-    def __init__(self, config: ServoConfig, dt: float) -> None:
-        if not (config.speed > 0 and config.accel > 0 and config.approach_rate > 0):
-            raise ValueError(f"servo: speed, accel, approach_rate must be > 0, got {config}")
-        self.config = config
-        self.dt = float(dt)
+    def __init__(
+        self,
+        plan: ReferencePlan,
+        config: ServoConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
+    ) -> None:
+        super().__init__(plan, config, dt, robot)
         self._speed = 0.0
-
-    @classmethod
-    def from_plan(cls, plan, config, dt, robot=None) -> Servo:
-        """See :meth:`amex.methods.Method.from_plan`; the plan is not used."""
-        return cls(config, dt)
 
     def reset(self, obs: Observation) -> None:
         """See :meth:`amex.methods.Method.reset`: start at rest."""

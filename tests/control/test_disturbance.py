@@ -158,7 +158,7 @@ def nominal():
 def test_switching_compensation_off_reproduces_the_episode_bit_for_bit(nominal):
     config, ctx = nominal
     scenario = make_scenario(config.scene(), 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
-    method = METHODS["amex"].from_plan(ctx.plan, config.method, 0.01, ctx.robot)
+    method = METHODS["amex"](ctx.plan, config.method, 0.01, ctx.robot)
     reference = ctx.plan.y[:, :3]
     plain = run_episode(
         ctx.robot, method, scenario, config.gains(), config.loop, reference_path=reference
@@ -197,7 +197,7 @@ def test_observer_reaches_the_goal_under_strong_mismatch(nominal, mismatch):
     # without compensation AMEX fails every one of these (Task 1, environment 0)
     config, ctx = nominal
     scenario = make_scenario(config.scene(), 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
-    method = METHODS["amex"].from_plan(ctx.plan, config.method, 0.01, ctx.robot)
+    method = METHODS["amex"](ctx.plan, config.method, 0.01, ctx.robot)
     compensation = DisturbanceConfig(kind="observer")
     result = run_episode(
         ctx.robot,

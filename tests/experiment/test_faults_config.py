@@ -190,11 +190,18 @@ def test_a_run_directory_on_a_read_only_file_system_is_refused(read_only_dir, mo
     ("method", "param", "value"),
     [("dmp", "n_basis", 1), ("amex", "eq9", "foo"), ("amex", "n_control", 2), ("cr", "knot_dt", 0)],
 )
-def test_preflight_builds_the_method_and_names_its_bad_parameter(method, param, value):
+def test_a_bad_method_parameter_is_named_by_the_validation_before_a_run(method, param, value):
     config = _config(method)
     setattr(config.method, param, value)
-    validate(config)  # the schema alone cannot know these
     with pytest.raises(ConfigError, match=rf"invalid method.{param}=.*; valid: "):
+        validate(config)  # the method config's own validate()
+
+
+def test_preflight_builds_the_method_and_names_a_parameter_that_does_not_fit_the_plan():
+    config = _config("amex")
+    config.method.n_control = 500
+    validate(config)  # the schema alone cannot know the plan's 401 samples
+    with pytest.raises(ConfigError, match=r"invalid method.n_control=500; valid: 0 or 3..401"):
         preflight(config)
 
 

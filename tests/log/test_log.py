@@ -150,7 +150,7 @@ _CHILD = textwrap.dedent(
     config.method = DMPConfig()
     ctx = prepare(config)
     scenario = make_scenario(config.scene(), 3, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
-    method = get_method("dmp").from_plan(ctx.plan, config.method, 0.01, ctx.robot)
+    method = get_method("dmp")(ctx.plan, config.method, 0.01, ctx.robot)
     logger = EpisodeLogger(Path(sys.argv[1]), ctx.robot, ctx.plan, scenario, {"task": 3})
 
     class Tee:

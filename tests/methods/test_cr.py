@@ -87,7 +87,7 @@ def test_cr_is_registered_with_its_config():
 def test_replanning_from_the_reference_start_reproduces_the_reference(context):
     config, ctx = context
     plan = ctx.plan
-    cr = CR.from_plan(plan, reference_weights(config), DT, ctx.robot)
+    cr = CR(plan, reference_weights(config), DT, ctx.robot)
     obs = observe(config, 0.0, plan.q[0], np.zeros(7))
     cr.reset(obs)
     command = cr.step(obs)
@@ -103,7 +103,7 @@ def test_warm_start_converges_in_fewer_iterations_than_cold(context):
     config, ctx = context
     plan, robot = ctx.plan, ctx.robot
     goal = np.asarray(config.scenario.reference_goal) + [0.03, -0.04, 0.05]  # a new goal
-    cr = CR.from_plan(plan, scene(CRConfig(tolerance=1e-4)), DT, robot)
+    cr = CR(plan, scene(CRConfig(tolerance=1e-4)), DT, robot)
     first = observe(config, 0.0, plan.q[0], np.zeros(7), goal)
     cr.reset(first)
     cr.step(first)
@@ -121,20 +121,20 @@ def test_warm_start_converges_in_fewer_iterations_than_cold(context):
 
 def test_horizon_shrinks_to_t_ref_then_holds_then_recedes(context):
     config, ctx = context
-    cr = CR.from_plan(ctx.plan, scene(CRConfig()), DT, ctx.robot)
+    cr = CR(ctx.plan, scene(CRConfig()), DT, ctx.robot)
     assert cr.horizon(0.0) == ("shrink", 400)
     assert cr.horizon(1.234) == ("shrink", 277)
     assert cr.horizon(3.98) == ("shrink", 2)  # min_steps = 2 (original)
     assert cr.horizon(3.99) == ("hold", 0)
     assert cr.horizon(4.0) == ("tail", 50) and cr.horizon(8.0) == ("tail", 50)
-    original = CR.from_plan(ctx.plan, scene(CRConfig(tail_horizon=0.0)), DT, ctx.robot)
+    original = CR(ctx.plan, scene(CRConfig(tail_horizon=0.0)), DT, ctx.robot)
     assert original.horizon(4.0) == ("hold", 0) and original.horizon(9.0) == ("hold", 0)
 
 
 def test_hold_sends_the_last_final_knot_at_rest(context):
     config, ctx = context
     plan = ctx.plan
-    cr = CR.from_plan(plan, scene(CRConfig()), DT, ctx.robot)
+    cr = CR(plan, scene(CRConfig()), DT, ctx.robot)
     obs = observe(config, 3.98, plan.q[398], (plan.q[399] - plan.q[397]) / (2 * DT))
     cr.reset(obs)
     cr.step(obs)
@@ -149,7 +149,7 @@ def test_after_t_ref_the_tail_replans_towards_a_moved_goal(context):
     config, ctx = context
     robot, plan = ctx.robot, ctx.plan
     goal = np.asarray(config.scenario.reference_goal) + [0.0, 0.03, 0.0]
-    cr = CR.from_plan(plan, scene(CRConfig()), DT, robot)
+    cr = CR(plan, scene(CRConfig()), DT, robot)
     obs = observe(config, 4.5, plan.q[-1], np.zeros(7), goal)
     cr.reset(obs)
     command = cr.step(obs)
@@ -165,7 +165,7 @@ def test_plan_keeps_out_of_the_obstacle_margin_in_a_task3_scene(context):
     scenario = make_scenario(config.scene(), 3, 0, 0, plan.y[0, :3], plan.duration)
     centers, radii = scenario.obstacles_at(0.0), scenario.obstacle_radii
     obs = observe(config, 0.0, plan.q[0], np.zeros(7), scenario.goal_at(0.0), centers, radii)
-    cr = CR.from_plan(plan, scene(CRConfig()), DT, robot)
+    cr = CR(plan, scene(CRConfig()), DT, robot)
     cr.reset(obs)
     cr.step(obs)
     margin = cr.costs.weights.collision_margin
@@ -188,9 +188,9 @@ def test_realtime_mode_caps_the_iterations(context):
         scenario.obstacles_at(0.0),
         scenario.obstacle_radii,
     )
-    full = CR.from_plan(plan, scene(CRConfig()), DT, ctx.robot)
+    full = CR(plan, scene(CRConfig()), DT, ctx.robot)
     capped = scene(CRConfig(realtime=True, realtime_iterations=2))
-    realtime = CR.from_plan(plan, capped, DT, ctx.robot)
+    realtime = CR(plan, capped, DT, ctx.robot)
     for cr in (full, realtime):
         cr.reset(obs)
         cr.step(obs)
@@ -202,7 +202,7 @@ def test_realtime_mode_caps_the_iterations(context):
 def test_internals_report_the_solve_and_the_planned_tcp_path(context):
     config, ctx = context
     robot, plan = ctx.robot, ctx.plan
-    cr = CR.from_plan(plan, scene(CRConfig()), DT, robot)
+    cr = CR(plan, scene(CRConfig()), DT, robot)
     obs = observe(config, 0.5, plan.q[50], (plan.q[51] - plan.q[49]) / (2 * DT))
     cr.reset(obs)
     cr.step(obs)
@@ -217,7 +217,7 @@ def test_internals_report_the_solve_and_the_planned_tcp_path(context):
 
 def test_non_finite_observation_raises_solver_error(context):
     config, ctx = context
-    cr = CR.from_plan(ctx.plan, scene(CRConfig()), DT, ctx.robot)
+    cr = CR(ctx.plan, scene(CRConfig()), DT, ctx.robot)
     q = ctx.plan.q[0].copy()
     q[3] = np.nan
     with pytest.raises(InputError, match="non-finite q"):  # rejected where it enters
@@ -242,7 +242,7 @@ class _BlindAfterHalfASecond(CR):
 def test_solver_failure_ends_the_episode_with_a_solver_reason(context):
     config, ctx = context
     scenario = make_scenario(config.scene(), 1, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
-    method = _BlindAfterHalfASecond.from_plan(ctx.plan, scene(CRConfig()), DT, ctx.robot)
+    method = _BlindAfterHalfASecond(ctx.plan, scene(CRConfig()), DT, ctx.robot)
     result = run_episode(ctx.robot, method, scenario, config.gains(), config.loop)
     assert result.failure.startswith("solver") and "non-finite goal" in result.failure
     assert not result.success
@@ -252,7 +252,7 @@ def test_solver_failure_ends_the_episode_with_a_solver_reason(context):
 def test_invalid_settings_raise_config_error(context):
     config, ctx = context
     with pytest.raises(ConfigError, match="robot"):
-        CR.from_plan(ctx.plan, scene(CRConfig()), DT, None)
+        CR(ctx.plan, scene(CRConfig()), DT, None)
     bad = [
         {"max_iterations": 0},
         {"realtime_iterations": 0},
@@ -265,7 +265,7 @@ def test_invalid_settings_raise_config_error(context):
     ]
     for changes in bad:
         with pytest.raises(ConfigError, match=next(iter(changes))):
-            CR.from_plan(ctx.plan, scene(CRConfig(**changes)), DT, ctx.robot)
+            CR(ctx.plan, scene(CRConfig(**changes)), DT, ctx.robot)
 
 
 def test_resampling_whole_knots_is_the_shifted_warm_start():

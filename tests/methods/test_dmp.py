@@ -17,17 +17,24 @@ from analysis.bench_dmp import DT_REF, G_REF, T_REF, Y0, reference_at  # the sha
 REFERENCE = reference_at(np.arange(401) * DT_REF)
 
 
+def make(cls=None, reference=REFERENCE, dt=0.01, **params):
+    """A DMP (or ``cls``) on ``reference`` over T_ref with its config's ``params``, period dt."""
+    cls = DMP if cls is None else cls
+    plan = ReferencePlan.from_path(reference, T_REF)
+    return cls(plan, cls.config_class(**params), dt)
+
+
 def rollout(dmp: DMP, dt: float, duration: float, goal=None) -> tuple[np.ndarray, np.ndarray]:
     """Times and positions (including t = 0) of an open-loop rollout with a fixed goal."""
     goal = dmp.g_ref if goal is None else goal
     n = round(duration / dt)
-    ys = [dmp.y] + [dmp.update(goal, dt).y for _ in range(n)]
+    ys = [dmp.y] + [dmp.update(goal, dt).y_star for _ in range(n)]
     return np.arange(n + 1) * dt, np.array(ys)
 
 
 @pytest.mark.parametrize("dt", [0.001, 0.002, 0.005, 0.01, 0.02, 0.05])
 def test_reproduces_reference_within_0_3_mm_at_every_control_period(dt):
-    dmp = DMP(REFERENCE, T_REF, dt)
+    dmp = make(dt=dt)
     t, y = rollout(dmp, dt, T_REF)
     err = np.linalg.norm(y[:, :3] - reference_at(t)[:, :3], axis=1)
     assert err.max() < 0.3e-3
@@ -37,7 +44,7 @@ def test_reproduces_reference_within_0_3_mm_at_every_control_period(dt):
 def test_rollout_is_the_continuous_dmp_whatever_the_step():
     """Goal switching every second: every dt lands on the exact solution of the DMP's ODE."""
     rng = np.random.default_rng(3)
-    dmp = DMP(REFERENCE, T_REF, 0.01, amplitude="goal")
+    dmp = make(dt=0.01, amplitude="goal")
     goals = G_REF + rng.normal(0.0, 0.1, (5, 6))
 
     def rhs(t, s, g):
@@ -70,12 +77,12 @@ def test_rollout_is_the_continuous_dmp_whatever_the_step():
             target = dmp.update(goals[second], dt)
             t1 = (k + 1) * dt
             sol = exact[min(int(t1 - 1e-9), 4)](t1)
-            worst = max(worst, np.abs(target.y - sol[:6]).max(), abs(target.x - sol[12]))
+            worst = max(worst, np.abs(target.y_star - sol[:6]).max(), abs(target.x - sol[12]))
         assert worst < 1e-8
 
 
 def test_phase_follows_eq1_exponential():
-    dmp = DMP(REFERENCE, T_REF, 0.01)
+    dmp = make()
     xs = [dmp.update(dmp.g_ref, 0.01).x for _ in range(700)]
     t = np.arange(1, 701) * 0.01
     np.testing.assert_allclose(xs, np.exp(-dmp.alpha_x * t / T_REF), rtol=1e-12)
@@ -84,17 +91,17 @@ def test_phase_follows_eq1_exponential():
 
 @pytest.mark.parametrize("amplitude", ["trained", "goal"])
 def test_goal_change_moves_endpoint_to_new_goal(amplitude):
-    dmp = DMP(REFERENCE, T_REF, 0.01, amplitude=amplitude)
+    dmp = make(dt=0.01, amplitude=amplitude)
     first = G_REF + np.array([0.2, -0.1, 0.1, 0.0, 0.2, 0.0])
     final = G_REF + np.array([-0.1, 0.3, 0.2, -0.2, 0.1, 0.1])
     for k in range(1000):
         target = dmp.update(first if k < 200 else final, 0.01)
-    assert np.abs(target.y - final).max() < 1e-3
-    assert np.abs(target.yd).max() < 1e-2
+    assert np.abs(target.y_star - final).max() < 1e-3
+    assert np.abs(target.yd_star).max() < 1e-2
 
 
 def test_goal_mode_scales_the_shape_with_the_goal():
-    dmp = DMP(REFERENCE, T_REF, 0.01, amplitude="goal", min_amplitude=0.05)
+    dmp = make(dt=0.01, amplitude="goal", min_amplitude=0.05)
     goal = Y0 + 2.0 * (G_REF - Y0)  # every moving dimension twice as far
     goal[4] = 0.3  # a dimension that did not move in training: not rescaled
     _, y = rollout(dmp, 0.01, T_REF, goal)
@@ -108,13 +115,13 @@ def test_goal_at_start_gives_bounded_output(amplitude):
     loop = np.repeat(Y0[None], 401, axis=0)  # out and back: g_ref - y0 = 1e-13 in every dimension
     loop[:, :3] += 0.1 * np.sin(np.pi * s)[:, None] ** 2 * np.array([1.0, -0.5, 0.3])
     loop[-1] += 1e-13
-    dmp = DMP(loop, T_REF, 0.01, amplitude=amplitude)
+    dmp = make(reference=loop, amplitude=amplitude)
     assert np.abs(dmp.weights).max() < 1e7  # peers' division by g - y0 gives 1e34 here
     _, y = rollout(dmp, 0.01, 8.0)
     assert np.all(np.isfinite(y))
     assert np.abs(y - Y0).max() < 0.2
     assert np.abs(y[-1] - loop[-1]).max() < 1e-3
-    dmp = DMP(REFERENCE, T_REF, 0.01, amplitude=amplitude)  # now the goal is put on the start
+    dmp = make(dt=0.01, amplitude=amplitude)  # now the goal is put on the start
     _, y = rollout(dmp, 0.01, 8.0, Y0)
     assert np.all(np.isfinite(y))
     assert np.abs(y - Y0).max() < 0.5
@@ -128,7 +135,7 @@ def test_goal_at_start_gives_bounded_output(amplitude):
 )
 def test_any_goal_gives_finite_output_that_converges_to_it(offset, amplitude):
     goal = G_REF + np.array(offset)
-    dmp = DMP(REFERENCE, T_REF, 0.02, amplitude=amplitude)
+    dmp = make(dt=0.02, amplitude=amplitude)
     _, y = rollout(dmp, 0.02, 10.0, goal)
     assert np.all(np.isfinite(y))
     assert np.abs(y - goal).max() < 40.0 * (1.0 + np.abs(goal - Y0).max())
@@ -136,8 +143,8 @@ def test_any_goal_gives_finite_output_that_converges_to_it(offset, amplitude):
 
 
 def test_phase_stopping_slows_phase_under_tracking_error():
-    plain = DMP(REFERENCE, T_REF, 0.01)
-    stopping = DMPPhaseStop(REFERENCE, T_REF, 0.01, beta_ps=1e3)
+    plain = make()
+    stopping = make(DMPPhaseStop, beta_ps=1e3)
     stuck = REFERENCE[0].copy()  # the robot does not move
     for _ in range(150):
         p = plain.update(plain.g_ref, 0.01)
@@ -149,19 +156,19 @@ def test_phase_stopping_slows_phase_under_tracking_error():
 
 
 def test_phase_stopping_equals_plain_dmp_when_tracking_exactly():
-    plain = DMP(REFERENCE, T_REF, 0.01)
-    stopping = DMPPhaseStop(REFERENCE, T_REF, 0.01)
+    plain = make()
+    stopping = make(DMPPhaseStop, beta_ps=1e3)
     robot = stopping.y
     for _ in range(500):
         p = plain.update(plain.g_ref, 0.01)
         q = stopping.update(stopping.g_ref, 0.01, robot)
-        robot = q.y  # the robot is exactly at the last command
+        robot = q.y_star  # the robot is exactly at the last command
         assert q.x == p.x
-        np.testing.assert_array_equal(q.y, p.y)
+        np.testing.assert_array_equal(q.y_star, p.y_star)
 
 
 def test_phase_stopping_slowed_phase_is_eq2_exponential():
-    dmp = DMPPhaseStop(REFERENCE, T_REF, 0.01, beta_ps=1e3)
+    dmp = make(DMPPhaseStop, beta_ps=1e3)
     u = 0.0
     for k in range(300):
         y = REFERENCE[0] + 0.01 * math.sin(k / 10.0)
@@ -180,8 +187,8 @@ def observation(t: float, y: np.ndarray, goal: np.ndarray) -> Observation:
 
 
 @pytest.mark.parametrize(("cls", "config"), [(DMP, DMPConfig()), (DMPPhaseStop, DMPPSConfig())])
-def test_from_plan_and_step_follow_the_plan(cls, config):
-    method = cls.from_plan(make_plan(), config, 0.01)
+def test_built_on_a_plan_each_step_follows_it(cls, config):
+    method = cls(make_plan(), config, 0.01)
     assert method.name == config.name
     assert cls.config_class is type(config)
     method.reset(observation(0.0, REFERENCE[0], G_REF))
@@ -195,20 +202,20 @@ def test_from_plan_and_step_follow_the_plan(cls, config):
 
 
 def test_step_takes_only_the_goal_from_the_observation():
-    method = DMP.from_plan(make_plan(), DMPConfig(), 0.01)
-    twin = DMP.from_plan(make_plan(), DMPConfig(), 0.01)
+    method = DMP(make_plan(), DMPConfig(), 0.01)
+    twin = DMP(make_plan())
     method.reset(observation(0.0, REFERENCE[0], G_REF))
     twin.reset_state(REFERENCE[0], np.zeros(6))
     goal = G_REF + 0.1
     for k in range(50):
         far = REFERENCE[0] + 0.3  # the measured robot state does not enter the plain DMP
         cmd = method.step(observation(k * 0.01, far, goal))
-        np.testing.assert_array_equal(cmd.y, twin.update(goal, 0.01).y)
+        np.testing.assert_array_equal(cmd.y, twin.update(goal, 0.01).y_star)
 
 
-def test_from_plan_passes_config_parameters():
+def test_the_config_parameters_reach_the_method():
     config = DMPPSConfig(beta_ps=50.0, n_basis=40, amplitude="goal")
-    method = DMPPhaseStop.from_plan(make_plan(), config, 0.02)
+    method = DMPPhaseStop(make_plan(), config, 0.02)
     assert (method.beta_ps, method.n_basis, method.amplitude_mode, method.dt) == (
         50.0,
         40,
@@ -219,12 +226,14 @@ def test_from_plan_passes_config_parameters():
 
 def test_invalid_parameters_raise_config_error():
     with pytest.raises(ConfigError, match="amplitude='start'"):
-        DMP(REFERENCE, T_REF, 0.01, amplitude="start")
-    with pytest.raises(ConfigError, match="DMP parameter='alpha'"):
-        DMP(REFERENCE, T_REF, 0.01, alpha=3.0)
+        make(amplitude="start")
+    with pytest.raises(ConfigError, match=r"method.n_basis=1; valid: an integer >= 2"):
+        make(n_basis=1)
     with pytest.raises(ConfigError, match="dt=0.0"):
-        DMP(REFERENCE, T_REF, 0.0)
+        make(dt=0.0)
     with pytest.raises(ConfigError, match="shape"):
-        DMP(REFERENCE[:, 0], T_REF, 0.01)
+        DMP(ReferencePlan(q=np.zeros((401, 0)), y=REFERENCE[:, 0], dt=DT_REF))
     with pytest.raises(ConfigError, match="beta_ps"):
-        DMPPhaseStop(REFERENCE, T_REF, 0.01, beta_ps=-1.0)
+        make(DMPPhaseStop, beta_ps=-1.0)
+    with pytest.raises(ConfigError, match="DMPPhaseStop config DMPConfig.*missing: beta_ps"):
+        DMPPhaseStop(make_plan(), DMPConfig())

@@ -14,7 +14,7 @@ import pytest
 from amex.core.errors import AmexError, ConfigError, InputError
 from amex.methods import AMEX, DMP, METHODS, DMPPhaseStop, Observation
 from amex.plan.cache import reference_plan
-from amex.plan.reference import PlanConfig
+from amex.plan.reference import PlanConfig, ReferencePlan
 
 GOAL = np.array([0.384, 0.229, 0.461])
 AXIS = np.array([0.0, 0.0, -1.0])
@@ -63,8 +63,8 @@ def _command(method, obs):
 @pytest.mark.parametrize("field", ARRAYS)
 def test_nan_into_a_step_never_poisons_the_method(plan, robot, name, field):
     cls = METHODS[name]
-    clean = cls.from_plan(plan, cls.config_class(), DT, robot)
-    hit = cls.from_plan(plan, cls.config_class(), DT, robot)
+    clean = cls(plan, cls.config_class(), DT, robot)
+    hit = cls(plan, cls.config_class(), DT, robot)
     for method in (clean, hit):
         method.reset(_obs(plan, robot, 0))
         _command(method, _obs(plan, robot, 0))
@@ -89,7 +89,7 @@ def test_nan_into_a_step_never_poisons_the_method(plan, robot, name, field):
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_amex_update_rejects_non_finite_input_and_stays_usable(plan, bad):
-    clean, hit = AMEX(plan.y, plan.duration, DT), AMEX(plan.y, plan.duration, DT)
+    clean, hit = AMEX(plan, dt=DT), AMEX(plan, dt=DT)
     g = plan.y[-1] + 0.01
     for amex in (clean, hit):
         amex.update(plan.y[0], g)
@@ -106,7 +106,7 @@ def test_amex_update_rejects_non_finite_input_and_stays_usable(plan, bad):
 
 @pytest.mark.parametrize("cls", [DMP, DMPPhaseStop])
 def test_dmp_update_rejects_non_finite_input_and_stays_usable(plan, cls):
-    clean, hit = cls(plan.y, plan.duration, DT), cls(plan.y, plan.duration, DT)
+    clean, hit = cls(plan, dt=DT), cls(plan, dt=DT)
     g = plan.y[-1] + 0.01
     for dmp in (clean, hit):
         dmp.update(g, DT)
@@ -122,9 +122,10 @@ def test_dmp_update_rejects_non_finite_input_and_stays_usable(plan, cls):
         hit.reset_state(np.full(6, np.inf))
     for _ in range(30):
         a, b = clean.update(g, DT), hit.update(g, DT)
-        assert a.x == b.x and np.array_equal(a.y, b.y)
+        assert a.x == b.x and np.array_equal(a.y_star, b.y_star)
 
 
 def test_amex_refuses_a_reference_that_does_not_move(plan):
+    still = ReferencePlan(q=plan.q, y=np.repeat(plan.y[:1], len(plan.y), axis=0), dt=plan.dt)
     with pytest.raises(ConfigError, match="must move"):
-        AMEX(np.repeat(plan.y[:1], len(plan.y), axis=0), plan.duration, DT)
+        AMEX(still, dt=DT)

@@ -11,6 +11,7 @@ from amex.methods import AMEXOriginal, CROriginal, DMPOriginal, get_method
 from amex.methods.base import Observation
 from amex.methods.original.amex import PiecewiseLinearPlan
 from amex.plan.optimizer import TrajectoryProblem, solve_trajectory, solve_trajectory_newton
+from amex.plan.reference import ReferencePlan
 from amex.sim.scenario import goal_grid, plan_goal, with_reference_goal
 
 T_REF, DT = 4.0, 0.01
@@ -22,6 +23,10 @@ def _reference(n=401):
     start = np.array([0.36, -2.55, 1.83, 0.07, -1.0, 0.07])
     goal = np.array([0.75, -1.40, 1.70, 1.0, 0.0, 0.0])
     return start + blend * (goal - start)
+
+
+def _plan() -> ReferencePlan:
+    return ReferencePlan.from_path(_reference(), T_REF)  # samples DT apart
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +51,7 @@ def test_the_linear_plan_interpolates_and_its_warp_keeps_the_invariants():
 
 
 def test_original_amex_steps_the_phase_twice_by_the_reference_rate_then_by_eq8():
-    amex = AMEXOriginal(_reference(), T_REF, DT)
+    amex = AMEXOriginal(_plan(), None, DT)
     y, g = _reference()[0], _reference()[-1]
     for expected in (DT / T_REF, 2 * DT / T_REF):
         target = amex.update(y, g)
@@ -57,7 +62,7 @@ def test_original_amex_steps_the_phase_twice_by_the_reference_rate_then_by_eq8()
 
 
 def test_original_amex_divides_by_zero_like_the_original():
-    amex = AMEXOriginal(_reference(), T_REF, DT)
+    amex = AMEXOriginal(_plan(), None, DT)
     y = _reference()[0]
     for _ in range(3):
         target = amex.update(y, _reference()[-1])  # the robot never moves: delta_y = 0 / step
@@ -65,9 +70,9 @@ def test_original_amex_divides_by_zero_like_the_original():
 
 
 def test_original_dmp_runs_its_motion_in_8_seconds_of_time_constant():
-    dmp = DMPOriginal(_reference(), DT)
+    dmp = DMPOriginal(_plan(), None, DT)
     assert 1.0 / dmp.tau == pytest.approx(8.02)
-    ys = np.array([dmp.update(_reference()[-1]).y for _ in range(400)])
+    ys = np.array([dmp.update(_reference()[-1]).y_star for _ in range(400)])
     assert np.abs(ys - _reference()[1:]).max() < 0.02  # the reference, at its own pace
     assert np.abs(ys[-1] - _reference()[-1]).max() < 0.01
 
@@ -84,9 +89,11 @@ def _arrival(update) -> float:
 
 
 def test_original_dmp_follows_a_moving_goal_a_second_later():
-    ours = get_method("dmp")(_reference(), T_REF, DT)
-    theirs = DMPOriginal(_reference(), DT)
-    late = _arrival(lambda g: theirs.update(g).y) - _arrival(lambda g: ours.update(g, DT).y)
+    ours = get_method("dmp")(_plan(), None, DT)
+    theirs = DMPOriginal(_plan(), None, DT)
+    late = _arrival(lambda g: theirs.update(g).y_star) - _arrival(
+        lambda g: ours.update(g, DT).y_star
+    )
     assert late > 0.8  # time constant 8.02 s against 4 s
 
 
@@ -96,7 +103,7 @@ def test_newton_stops_without_an_update_at_an_optimum_and_agrees_with_levenberg(
     goal = plan_goal(config.scene(), 1, plan.y[0, :3])
     problem = TrajectoryProblem(
         robot.q0, np.zeros(7), 400, 0.01, goal, np.array(config.scenario.goal_axis),
-        costs=CROriginal.from_plan(plan, config.method_config(), 0.01, robot).costs,
+        costs=CROriginal(plan, config.method_config(), 0.01, robot).costs,
     )  # fmt: skip
     levenberg = solve_trajectory(robot, problem, q_init=plan.q, tolerance=1e-9, max_iterations=50)
     newton = solve_trajectory_newton(robot, problem, q_init=levenberg.q)
@@ -106,7 +113,7 @@ def test_newton_stops_without_an_update_at_an_optimum_and_agrees_with_levenberg(
 
 def test_original_cr_shrinks_its_horizon_and_ends_the_episode_at_t_ref(original):
     config, ctx = original
-    cr = CROriginal.from_plan(ctx.plan, config.method_config(), 0.01, ctx.robot)
+    cr = CROriginal(ctx.plan, config.method_config(), 0.01, ctx.robot)
     goal = np.r_[ctx.plan.y[-1, :3], config.scenario.goal_axis]
     q, steps = ctx.plan.q, []
     for k in range(400):

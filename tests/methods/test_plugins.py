@@ -48,6 +48,15 @@ def test_a_plugin_method_runs_from_the_command_line_beside_the_built_ins(tmp_pat
         env=env,
     )
     assert bad.returncode == 2 and "servo" in bad.stderr and "amex" in bad.stderr
+    slow = subprocess.run(  # the plugin's own validate(), before anything is written
+        [AMEX_RUN, "method=servo", "method.speed=0", f"hydra.run.dir={tmp_path / 'slow'}"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        env=env,
+    )
+    assert slow.returncode == 2 and "method.speed=0" in slow.stderr, slow.stderr
+    assert len(slow.stderr.strip().splitlines()) == 1 and not (tmp_path / "slow").exists()
 
 
 @pytest.mark.parametrize(

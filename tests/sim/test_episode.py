@@ -66,7 +66,7 @@ class _Wild(Track):
 def test_numerical_trouble_ends_the_episode_with_a_reason(context, method_cls, reason):
     config, ctx = context
     scenario = make_scenario(config.scene(), 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
-    method = method_cls.from_plan(ctx.plan, config.method, 0.01)
+    method = method_cls(ctx.plan, config.method, 0.01)
     result = run_episode(ctx.robot, method, scenario, config.gains(), config.loop)
     assert not result.success
     if reason:
@@ -106,7 +106,7 @@ def test_kinematic_simulation_integrates_the_controller_accelerations_by_explici
     config, ctx = context
     loop = dataclasses.replace(config.loop, kinematic=True, max_time=0.5)
     scenario = make_scenario(config.scene(), 0, 0, 0, ctx.plan.y[0, :3], ctx.plan.duration)
-    method = Track.from_plan(ctx.plan, config.method, 0.01)
+    method = Track(ctx.plan, config.method, 0.01)
     recorder = _Recorder()
     run_episode(ctx.robot, method, scenario, config.gains(), loop, recorder)
     first, second = recorder.steps[0], recorder.steps[1]

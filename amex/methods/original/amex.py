@@ -1,7 +1,8 @@
 """AMEX as the authors' harness ran it (``pfc.cpp`` and ``spline.cpp`` at commit b475fa1fe).
 
 ``implementation=original method=amex`` selects it (``experiment=original`` sets it). It differs
-from :class:`~amex.methods.amex.AMEX` (ours) as DESIGN.md records, and nothing here is guarded:
+from :class:`~amex.methods.amex.AMEX` (ours) as ``docs/methods/originals.md`` records, and nothing
+here is guarded:
 
 * The plan is an order-2 de Boor spline over the N + 1 reference samples, i.e. piecewise linear
   through them at s_k = k / N (the paper says quadratic), read as ``value(s)``; for s >= 1 it is the
@@ -25,14 +26,17 @@ episode then ends with ``nan_command``.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from amex.core.errors import ConfigError
-from amex.core.types import Command
+from amex.core.types import Command, Observation
 from amex.methods.amex import AMEXConfig, AMEXTarget, target_internals
-from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.base import Method
+
+if TYPE_CHECKING:
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
 
 
 class PiecewiseLinearPlan:
@@ -74,23 +78,28 @@ class AMEXOriginal(Method):
     """The authors' AMEX (module notes).
 
     Args:
-        reference: tau_ref samples over [0, duration], shape (N + 1, m).
-        duration: T_ref [s].
+        plan: the reference; its task path ``plan.y``, N + 1 samples over T_ref, shape (N + 1, m).
+        config: :class:`~amex.methods.amex.AMEXConfig`; none of its parameters apply (only the
+            inner gains).
         dt: outer period [s].
+        robot: not used.
     """
 
     name = "amex"
-    config_class = AMEXConfig  # none of its parameters apply (only the inner gains)
+    config_class = AMEXConfig
+    needs_motion = True  # Eq. 8, as in ours
 
-    def __init__(self, reference: np.ndarray, duration: float, dt: float) -> None:
-        Y = np.array(reference, dtype=float)
-        if Y.ndim != 2 or len(Y) < 3 or not np.all(np.isfinite(Y)):
-            raise ConfigError(f"AMEX reference must be finite, (N + 1 >= 3, m); got {Y.shape}")
-        if not (float(duration) > 0.0 and 0.0 < float(dt) <= float(duration)):
-            raise ConfigError.invalid("duration, dt", (duration, dt), "0 < dt <= duration [s]")
+    def __init__(
+        self,
+        plan: ReferencePlan,
+        config: AMEXConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
+    ) -> None:
+        super().__init__(plan, config, dt, robot)
+        Y = np.array(plan.y, dtype=float)
         self.samples = Y
-        self.duration = float(duration)
-        self.dt = float(dt)
+        self.duration = float(plan.duration)
         self.ds_ref = self.dt / self.duration
         self.reference = PiecewiseLinearPlan(Y)
         self.g_ref = Y[-1].copy()
@@ -136,11 +145,6 @@ class AMEXOriginal(Method):
         self._target_prev = y_star
         self._last = AMEXTarget(y_star, yd_star, s, float(delta_g), float(delta_y))
         return self._last
-
-    @classmethod
-    def from_plan(cls, plan: Any, config: MethodConfig, dt: float, robot: Any = None) -> Method:
-        """See :meth:`Method.from_plan`."""
-        return cls(plan.y, plan.duration, dt)
 
     def reset(self, obs: Observation) -> None:
         """See :meth:`Method.reset`."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from amex.core.errors import ConfigError
 from amex.core.types import Command
-from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.base import Method, Observation
 from amex.methods.cr import CRConfig, CRStatus
 from amex.plan.knots import resample_knots
 from amex.plan.weights import CollisionWeights
@@ -32,57 +32,43 @@ class CROriginal(Method):
     """The authors' continuous replanning (module notes).
 
     Args:
-        robot: the arm.
-        reference_q: the reference plan's knots, shape (T + 1, n) [rad]: the first warm start.
+        plan: the reference plan; its joint trajectory resampled at ``dt`` is the first warm
+            start, its metric that of the acceleration term.
+        config: :class:`~amex.methods.cr.CRConfig`; collision_margin (the proxy's margin [m]),
+            max_iterations (Newton steps per replan, original 20) and min_steps (the episode
+            ends below this many knots, original 2) apply.
         dt: the knot spacing and outer period [s] (the original's 0.01 s for both).
-        collision_margin: the collision proxy's margin [m].
-        metric: joint metric of the acceleration term (the reference plan's).
-        max_iterations: Newton steps per replan (original 20).
-        min_steps: the episode ends below this many knots (original 2).
+        robot: the arm; required.
     """
 
     name = "cr"
     config_class = CRConfig
+    needs_robot = True
+    config: CRConfig
+    robot: RobotModel
 
     def __init__(
         self,
-        robot: RobotModel,
-        reference_q: np.ndarray,
-        dt: float,
-        collision_margin: float,
-        metric: tuple[float, ...] = (),
-        max_iterations: int = 20,
-        min_steps: int = 2,
+        plan: ReferencePlan,
+        config: CRConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
     ) -> None:
         from amex.plan.optimizer import TrajectoryCosts
 
-        Q = np.array(reference_q, dtype=float)
-        if Q.ndim != 2 or Q.shape[1] != robot.nv or len(Q) < 3 or not np.isfinite(Q).all():
-            raise ConfigError.invalid("reference_q", Q.shape, f"finite (T + 1 >= 3, {robot.nv})")
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ConfigError.invalid("dt", dt, "> 0 [s]")
-        weights = CollisionWeights(collision_margin=collision_margin)  # the original's weights
+        super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
+        c, robot, metric = self.config, self.robot, plan.metric
+        steps = int(round(plan.duration / self.dt))
+        if steps < 2:
+            raise ConfigError.invalid("dt", dt, f"<= T_ref / 2 = {plan.duration / 2:g} [s]")
+        Q = np.array(resample_knots(plan.q, 0.0, self.dt / plan.dt, steps + 1), dtype=float)
+        weights = CollisionWeights(collision_margin=c.collision_margin)  # the original's weights
         self.costs = TrajectoryCosts.from_weights(weights, metric, final_velocity_space="tcp")
         self.robot = robot
         self.reference_q = Q
-        self.dt = float(dt)
-        self.max_iterations = int(max_iterations)
-        self.min_steps = int(min_steps)
+        self.max_iterations = int(c.max_iterations)
+        self.min_steps = int(c.min_steps)
         self.restart()
-
-    @classmethod
-    def from_plan(
-        cls, plan: ReferencePlan, config: MethodConfig, dt: float, robot: RobotModel | None = None
-    ) -> CROriginal:
-        """See :meth:`Method.from_plan`: the plan resampled at the outer period ``dt``."""
-        if robot is None:
-            raise ConfigError("CR needs the robot model: from_plan(plan, config, dt, robot)")
-        c = config if isinstance(config, CRConfig) else CRConfig()
-        steps = int(round(plan.duration / dt))
-        knots = resample_knots(plan.q, 0.0, dt / plan.dt, steps + 1)
-        return cls(
-            robot, knots, dt, c.collision_margin, plan.metric, c.max_iterations, c.min_steps
-        )
 
     def restart(self) -> None:
         """A new execution: the reference's knots, the start at rest as the prefix."""

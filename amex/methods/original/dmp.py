@@ -1,22 +1,18 @@
 """The DMP as the authors' harness ran it (``dmp.cpp`` at commit b475fa1fe).
 
 ``implementation=original method=dmp`` selects it (``experiment=original`` sets it); of the
-DMP parameters (:class:`~amex.methods.dmp.DMPConfig`) n_basis, alpha_x, alpha_y, beta_y and
-ridge apply. Against
-:class:`~amex.methods.dmp.DMP` (ours: exact integration, time constant T_ref):
+DMP parameters (:class:`~amex.methods.dmp.DMPConfig`) n_basis, alpha_x, alpha_y, beta_y and ridge
+apply. Against :class:`~amex.methods.dmp.DMP` (ours: exact integration, time constant T_ref):
 
-* Time constant. The harness computes ``T = (N + 1) dt`` (4.01 s for 401 samples at 10 ms) and
-  uses ``tau = 0.5 / T`` as the *rate* of the system, so the DMP runs as if its motion lasted
-  ``1 / tau = 2 T = 8.02 s``: ``y_ddot = tau^2 (alpha_y (beta_y (g - y) - y_dot / tau) + A f(x))``,
-  ``x_dot = -alpha_x tau x``. The forcing term is fitted on the 4 s reference at its real time
-  scale, so without goal changes the reference is reproduced; but the spring that pulls towards
-  a changed goal has a natural frequency of ``tau sqrt(alpha_y beta_y)`` = 1.56 rad/s, and the
-  phase has decayed only to 0.016 at 4 s. That, not the Euler steps, is why the paper's DMP is slow
-  on moving goals (Task 2: 5.77 s).
+* Time constant: ``T = (N + 1) dt`` (4.01 s) and the rate ``tau = 0.5 / T``, so
+  ``y_ddot = tau^2 (alpha_y (beta_y (g - y) - y_dot / tau) + A f(x))``, ``x_dot = -alpha_x tau x``:
+  the DMP runs as if its motion lasted ``1 / tau = 8.02 s`` (why it is slow on moving goals:
+  ``docs/methods/originals.md``).
 * Basis: ``c_i = exp(-alpha_x i / (2 (n - 1)))``, ``h_i = 0.5 / (0.65 (c_{i+1} - c_i)^2)``; the
   activations are not clamped after the last centre.
-* Training: derivatives of the reference by one-sided/central differences, phase samples by Euler
-  steps, ``F / A`` fitted with an absolute ridge 1e-7; ``A = g_ref - y0`` fixed.
+* Training: on the plan resampled at the outer period; derivatives of the reference by
+  one-sided/central differences, phase samples by Euler steps, ``F / A`` fitted with an absolute
+  ridge 1e-7; ``A = g_ref - y0`` fixed.
 * Integration: explicit Euler steps of the outer period, velocity first (``y_dot += dt y_ddot;
   y += dt y_dot``), then the phase.
 * Start: the reference's first sample, with velocity ``(tau_ref_1 - tau_ref_0) / dt``; only the
@@ -25,50 +21,49 @@ ridge apply. Against
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from amex.core.errors import ConfigError
-from amex.core.types import Command
-from amex.methods.base import Method, MethodConfig, Observation
+from amex.core.types import Command, Observation
+from amex.methods.base import Method
 from amex.methods.dmp import DMPConfig, DMPTarget
+
+if TYPE_CHECKING:
+    from amex.plan.reference import ReferencePlan
+    from amex.robot import RobotModel
 
 
 class DMPOriginal(Method):
     """The authors' DMP (module notes).
 
     Args:
-        reference: tau_ref samples, shape (N + 1, m), ``dt`` apart.
-        dt: the sample period and the integration step (the outer period) [s].
-        n_basis: basis functions per dimension (original 100).
-        alpha_x, alpha_y, beta_y: the original's constants.
-        ridge: absolute ridge of the fit (original 1e-7).
+        plan: the reference; trained on its task path ``plan.y`` resampled at ``dt``.
+        config: :class:`~amex.methods.dmp.DMPConfig`; n_basis (original 100), alpha_x, alpha_y,
+            beta_y (the original's constants) and ridge (absolute, original 1e-7) apply.
+        dt: the outer period, also the sample period and the Euler step [s].
+        robot: not used.
     """
 
     name = "dmp"
     config_class = DMPConfig
+    config: DMPConfig
 
     def __init__(
         self,
-        reference: np.ndarray,
-        dt: float,
-        n_basis: int = 100,
-        alpha_x: float = 25.0 / 3.0,
-        alpha_y: float = 25.0,
-        beta_y: float = 25.0 / 4.0,
-        ridge: float = 1e-7,
+        plan: ReferencePlan,
+        config: DMPConfig | None = None,
+        dt: float = 0.01,
+        robot: RobotModel | None = None,
     ) -> None:
-        Y = np.array(reference, dtype=float)
-        if Y.ndim != 2 or len(Y) < 3 or not np.all(np.isfinite(Y)):
-            raise ConfigError(f"DMP reference must be finite, (N + 1 >= 3, m); got {Y.shape}")
-        if not (dt > 0.0 and int(n_basis) >= 2):
-            raise ConfigError.invalid("dt, n_basis", (dt, n_basis), "dt > 0, n_basis >= 2")
+        super().__init__(plan, config, dt, robot)
+        c = self.config
+        Y = np.array(resample(plan.y, plan.dt, self.dt), dtype=float)
         self.reference = Y
-        self.dt = float(dt)
         self.tau = 0.5 / (len(Y) * self.dt)  # a rate [1/s]: the motion "lasts" 1 / tau
-        self.alpha_x, self.alpha_y, self.beta_y = float(alpha_x), float(alpha_y), float(beta_y)
-        n = int(n_basis)
+        self.alpha_x, self.alpha_y = float(c.alpha_x), float(c.alpha_y)
+        self.beta_y = float(c.beta_y)
+        n = int(c.n_basis)
         i = np.arange(n)
         self.centres = np.exp(-self.alpha_x * i * 0.5 / (n - 1))
         widths = 0.5 / (0.65 * np.diff(self.centres) ** 2)
@@ -76,7 +71,7 @@ class DMPOriginal(Method):
         self.y0 = Y[0].copy()
         self.g_ref = Y[-1].copy()
         self.amplitude = self.g_ref - self.y0
-        self.weights = self._fit(float(ridge))  # (n, m)
+        self.weights = self._fit(float(c.ridge))  # (n, m)
         self.reset_state()
 
     def _fit(self, ridge: float) -> np.ndarray:
@@ -115,13 +110,6 @@ class DMPOriginal(Method):
         self.x = self.x - self.alpha_x * self.x * tau * self.dt
         return DMPTarget(self.y.copy(), self.yd.copy(), self.x)
 
-    @classmethod
-    def from_plan(cls, plan: Any, config: MethodConfig, dt: float, robot: Any = None) -> Method:
-        """See :meth:`Method.from_plan`: trained on the plan resampled at the outer period."""
-        keys = ("n_basis", "alpha_x", "alpha_y", "beta_y", "ridge")
-        params = {k: getattr(config, k) for k in keys if hasattr(config, k)}
-        return cls(resample(plan.y, plan.dt, dt), dt, **params)
-
     def reset(self, obs: Observation) -> None:
         """See :meth:`Method.reset`: the DMP starts from the reference, not the measured state."""
         self.reset_state()
@@ -129,7 +117,7 @@ class DMPOriginal(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`."""
         target = self.update(obs.goal)
-        return Command(y=target.y, yd=target.yd)
+        return Command(y=target.y_star, yd=target.yd_star)
 
     def internals(self) -> dict[str, Any]:
         """The phase x."""
