@@ -20,7 +20,7 @@ task map in numpy (the test oracle), and :func:`solve_objective` solves a given 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import NamedTuple
 
 import numpy as np
@@ -37,35 +37,54 @@ from amex.robot import RobotModel
 from amex.robot.geometry import joint_metric
 
 
-@dataclass(frozen=True)
-class OSCGains:
-    """All gains of the inner controller. Defaults follow the original code where it had them.
+@dataclass
+class ControllerGains:
+    """The inner controller's terms that every method shares (Eq. 4-6); the original's values.
+
+    Declared once: :class:`OSCGains` adds the method's task gains, and the run's
+    ``controller.*`` configuration (:class:`~amex.experiment.config.ControllerConfig`) extends it.
 
     Attributes:
-        pos: TCP position task.
-        dir: TCP z-axis task.
-        col: collision task (target: margin not penetrated); original Kp 2500, Kd 100.
-        joint: joint target task, used when a command carries joint targets (CR; original 100/100).
-        damping: joint damping/posture task pulling towards ``q0`` with ``kp`` (original: Kd 10 at
-            precision 0.1, no stiffness).
+        col: collision task gains (original: Kp 2500, Kd 100).
+        joint: joint-target task gains, used by CR's joint commands (original: 100, 100).
+        damping: joint damping task pulling towards ``q0`` with ``kp`` (original: Kd 10 at
+            precision 0.1, no stiffness; we weight it 0.01).
         margin: collision margin [m].
-        reg: the regularizer ``H = reg * I`` of Eq. 4.
-        metric: the regularizer's joint metric, ``H = reg * diag(metric)``: ``identity`` or
-            ``original`` (:func:`~amex.robot.geometry.joint_metric`).
-        drift: include the TCP tasks' drift ``J_dot v`` (the original did not).
-        joint_only: joint-target commands use the joint task alone (the original's CR).
+        reg: regularizer H = reg * I of Eq. 4 [-] (original 1e-3 with the metric below).
+        metric: ``identity`` or ``original``: H = reg * diag(sqrt(n), ..., 1), the authors'
+            (:func:`~amex.robot.geometry.joint_metric`).
+        drift: subtract the TCP tasks' drift J_dot v (the original did not).
+        joint_only: joint-target commands (CR) are tracked by the joint task alone, without the
+            damping and collision tasks (the authors' CR controller).
     """
 
-    pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
-    dir: PD = field(default_factory=lambda: PD(1.0, 100.0, 0.5))
     col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
     joint: PD = field(default_factory=lambda: PD(100.0, 100.0, 1.0))
     damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
-    margin: float = 0.02
+    margin: float = 0.02  # [m]
     reg: float = 1e-6
     metric: str = "identity"
     drift: bool = True
     joint_only: bool = False
+
+
+@dataclass
+class OSCGains(ControllerGains):
+    """All gains of the inner controller: the shared terms plus the method's task gains.
+
+    Attributes:
+        pos: TCP position task (the method's).
+        dir: TCP z-axis task (the method's).
+    """
+
+    pos: PD = field(default_factory=lambda: PD(1.0, 100.0, 1.0))
+    dir: PD = field(default_factory=lambda: PD(1.0, 100.0, 0.5))
+
+    @classmethod
+    def of(cls, shared: ControllerGains, pos: PD, dir: PD) -> OSCGains:
+        """The gains of a method with task gains ``pos``, ``dir`` under the ``shared`` terms."""
+        terms = {f.name: getattr(shared, f.name) for f in fields(ControllerGains)}
+        return cls(pos=pos, dir=dir, **terms)
 
 
 class Objective(NamedTuple):

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from amex.control.disturbance import DisturbanceConfig
-from amex.control.osc import PD, OSCGains
+from amex.control.osc import ControllerGains, OSCGains
 from amex.core.errors import ConfigError
 from amex.core.scaling import scale_power, scale_value, scaled, to_scene_units
 from amex.core.schema import check_tree, limits
@@ -38,19 +38,14 @@ SIMULATIONS = ("dynamic", "kinematic")
 
 
 @dataclass
-class ControllerConfig:
+class ControllerConfig(ControllerGains):
     """Inner-controller terms shared by all methods (the methods set their own pos/dir gains).
 
+    The gains are :class:`~amex.control.osc.ControllerGains`' (declared there once); the run's
+    configuration states the margin in original units and adds the disturbance compensation.
+
     Attributes:
-        col: collision task gains (original: Kp 2500, Kd 100).
-        joint: joint-target task gains, used by CR's joint commands (original: 100, 100).
-        damping: joint damping task (original: Kd 10 at precision 0.1; we weight it 0.01).
         margin: collision margin (original 0.1 m; scene units, :mod:`amex.core.scaling`) [m].
-        reg: regularizer H = reg * I of Eq. 4 [-] (original 1e-3 with the metric below).
-        metric: ``identity`` or ``original``: H = reg * diag(sqrt(n), ..., 1), the authors'.
-        drift: subtract the TCP tasks' drift J_dot v (the original did not).
-        joint_only: joint-target commands (CR) are tracked by the joint task alone, without the
-            damping and collision tasks (the authors' CR controller).
         disturbance: compensation of unmodelled torques: ``none`` (the paper's controller),
             ``observer`` (generalized-momentum observer) or ``integral`` (integral action on the
             task errors); :mod:`amex.control.disturbance`. Dynamic simulation only.
@@ -60,14 +55,8 @@ class ControllerConfig:
         integral_limit: bound of the integral's task acceleration [m/s^2, rad/s^2].
     """
 
-    col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
-    joint: PD = field(default_factory=lambda: PD(100.0, 100.0, 1.0))
-    damping: PD = field(default_factory=lambda: PD(0.0, 10.0, 0.01))
+    # in original units here (the controller takes scene units): redeclared with its scale power
     margin: float = field(default=0.1, metadata=scaled(1))
-    reg: float = 1e-6
-    metric: str = "identity"
-    drift: bool = True
-    joint_only: bool = False
     disturbance: str = "none"
     observer_bandwidth: float = field(default=20.0, metadata=limits(gt=0))
     observer_limit: float = field(default=1.0, metadata=limits(gt=0, le=1))
@@ -178,18 +167,7 @@ class RunConfig:
     def gains(self) -> OSCGains:
         """Inner-controller gains: the method's task gains plus the shared terms."""
         c = to_scene_units(self.controller, float(self.scenario.scale))
-        return OSCGains(
-            pos=self.method.pos,
-            dir=self.method.dir,
-            col=c.col,
-            joint=c.joint,
-            damping=c.damping,
-            margin=c.margin,
-            reg=c.reg,
-            metric=c.metric,
-            drift=c.drift,
-            joint_only=c.joint_only,
-        )
+        return OSCGains.of(c, self.method.pos, self.method.dir)
 
 
 def validate(config: RunConfig) -> None:
