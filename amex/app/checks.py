@@ -24,7 +24,14 @@ from amex.app.compose import (
     use_command_line,
 )
 from amex.core.durable import RunLock
-from amex.core.errors import ConfigError, LaunchError, StoreError, UsageError
+from amex.core.errors import (
+    ConfigError,
+    LaunchError,
+    LockedError,
+    StoreError,
+    UsageError,
+    WriteError,
+)
 
 
 def command_line_jobs(overrides: list[str], multirun: bool) -> tuple[list[list[str]], list[str]]:
@@ -55,8 +62,10 @@ def command_line_jobs(overrides: list[str], multirun: bool) -> tuple[list[list[s
         raise UsageError(f"invalid sweep: {explain(e, overrides)}") from e
 
 
-def validate_command_line(argv: list[str]) -> None:
+def validate_command_line(argv: list[str]) -> list[Path]:
     """Compose and validate every run the command line describes, or raise :class:`UsageError`.
+
+    Returns the directories of the jobs, in launch order.
 
     The jobs of one cell that differ only in ``shard`` share one check of their configuration;
     every job's directory must be its own (a subdir without ``${amex.shard:...}`` is refused).
@@ -99,6 +108,30 @@ def validate_command_line(argv: list[str]) -> None:
         owners[job_dir] = job
         check_own_files(job_dir)
         _check_resumable(job_dir, config)
+    return list(owners)
+
+
+def launch_lock(job_dirs: list[Path], multirun: bool) -> RunLock | None:
+    """The lock this command holds before Hydra writes anything: the run's, or the sweep's.
+
+    Taken between the checks and Hydra's start, so that of two commands into one directory the
+    second is refused before its Hydra has written a byte there (its ``.hydra/`` record or
+    ``multirun.yaml``). A single run's job takes the same lock again (re-entrant); a sweep's
+    jobs, in other processes, lock their own directories.
+
+    Raises:
+        LaunchError: another command holds it.
+    """
+    if not job_dirs:
+        return None
+    directory = job_dirs[0] if not multirun else Path(os.path.commonpath(job_dirs))
+    if multirun and len(job_dirs) == 1:
+        directory = job_dirs[0].parent
+    try:
+        directory.mkdir(parents=True, exist_ok=True)
+        return RunLock(directory).acquire()
+    except (LockedError, WriteError, OSError) as e:
+        raise LaunchError(str(e)) from e
 
 
 def _shard_dir(first_dir: Path, first: Any, shard: int) -> Path | None:

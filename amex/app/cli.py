@@ -56,10 +56,10 @@ def run_main() -> None:
     try:
         with signals_raise():
             if not INFORMATIONAL.intersection(argv):
-                from amex.app.checks import validate_command_line
+                from amex.app.checks import launch_lock, validate_command_line
 
                 try:
-                    validate_command_line(argv)
+                    _lock = launch_lock(validate_command_line(argv), bool(multirun_flags))
                 except UsageError as e:
                     if debug:
                         raise

@@ -197,6 +197,10 @@ def create_new(path: Path, data: bytes) -> None:
     _sync_directory(path.parent)
 
 
+#: The run locks this process holds: lock file -> (pid, fd, holds); the pid tells a forked copy.
+_HELD: dict[str, tuple[int, int, int]] = {}
+
+
 class RunLock:
     """Exclusive lock of a run directory while a run writes into it (``flock``).
 
@@ -210,15 +214,25 @@ class RunLock:
     def __init__(self, directory: Path) -> None:
         self.path = directory / LOCK_NAME
         self._fd: int | None = None
+        self._nested = False
 
     def acquire(self) -> RunLock:
         """Take the lock, or raise :class:`LockedError` naming its holder (no waiting).
+
+        Re-entrant within a process: ``amex-run`` takes a run's lock before Hydra writes
+        anything into the directory, and the run takes it again (a no-op) when it starts.
 
         Raises:
             LockedError: another process holds it.
             WriteError: the lock file cannot be opened, or it is a symbolic link or not a
                 regular file (it is neither followed nor changed).
         """
+        key = os.path.realpath(self.path)
+        held = _HELD.get(key)
+        if held is not None and held[0] == os.getpid():  # this process holds it already
+            _HELD[key] = (held[0], held[1], held[2] + 1)
+            self._nested = True
+            return self
         fd = _open_no_link(self.path, os.O_RDWR | os.O_CREAT)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -234,11 +248,19 @@ class RunLock:
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()} since {stamp}".encode(), 0)
         self._fd = fd
+        _HELD[key] = (os.getpid(), fd, 1)
         return self
 
     def release(self) -> None:
-        """Give the lock up (idempotent)."""
+        """Give the lock up (idempotent); a nested hold only counts down."""
+        key = os.path.realpath(self.path)
+        if self._nested:
+            self._nested = False
+            pid, fd, count = _HELD[key]
+            _HELD[key] = (pid, fd, count - 1)
+            return
         if self._fd is not None:
+            _HELD.pop(key, None)
             os.close(self._fd)
             self._fd = None
 

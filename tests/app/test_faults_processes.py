@@ -188,9 +188,11 @@ def test_a_second_run_into_a_busy_directory_is_refused_in_one_line(tmp_path):
     args = ["task=3", "method=amex", "episodes=40", "max_time=6", f"hydra.run.dir={out}"]
     first = _start(args, tmp_path)
     _wait_for_rows(out, 1, first)
+    record = {p: p.read_bytes() for p in (out / ".hydra").iterdir()}
     second = subprocess.run(
-        [AMEX_RUN, *args], cwd=tmp_path, capture_output=True, text=True, timeout=120
+        [AMEX_RUN, *args, "seed=3"], cwd=tmp_path, capture_output=True, text=True, timeout=120
     )
+    assert {p: p.read_bytes() for p in (out / ".hydra").iterdir()} == record  # the winner's
     assert second.returncode == 2
     lines = second.stderr.strip().splitlines()
     assert len(lines) == 1 and "another amex-run is writing into" in lines[0], second.stderr

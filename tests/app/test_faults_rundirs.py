@@ -45,3 +45,27 @@ def test_runs_started_in_the_same_second_with_other_seeds_get_their_own_director
         seed = directory.rsplit("_seed", 1)[1]
         overrides = (tmp_path / directory / ".hydra" / "overrides.yaml").read_text()
         assert f"seed={seed}" in overrides  # each records its own seed
+
+
+def test_of_two_runs_started_together_into_one_directory_the_record_is_the_winners(tmp_path):
+    """The loser is refused before its Hydra writes a byte: .hydra/ records the winner's run."""
+    for attempt in range(2):
+        out = tmp_path / f"run{attempt}"
+        procs = {
+            seed: subprocess.Popen(
+                [AMEX_RUN, "task=0", "method=track", "episodes=2", "max_time=0.3",
+                 f"seed={seed}", f"hydra.run.dir={out}"],  # fmt: skip
+                cwd=tmp_path,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            for seed in (1, 2)
+        }
+        codes = {seed: p.wait(timeout=300) for seed, p in procs.items()}
+        for p in procs.values():
+            p.communicate()
+        winners = [seed for seed, code in codes.items() if code == 0]
+        assert len(winners) == 1 and sorted(codes.values()) == [0, 2], codes
+        overrides = (out / ".hydra" / "overrides.yaml").read_text()
+        assert f"seed={winners[0]}" in overrides, overrides
