@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from amex.core.errors import ConfigError
-from amex.core.types import Command
+from amex.core.types import Command, require_finite
 from amex.methods import Method, MethodConfig, Observation, ReferencePlan
 
 if TYPE_CHECKING:
@@ -76,6 +76,7 @@ class Servo(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`amex.methods.Method.step`."""
         c = self.config
+        require_finite(y=obs.y, goal=obs.goal)  # the contract: raise, and change nothing
         error = obs.goal[:3] - obs.y[:3]
         distance = math.sqrt(float(error @ error))
         self._speed = min(c.speed, self._speed + c.accel * self.dt, c.approach_rate * distance)

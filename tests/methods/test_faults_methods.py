@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from amex.core.errors import AmexError, ConfigError, InputError
-from amex.methods import AMEX, DMP, METHODS, DMPPhaseStop, Observation
+from amex.methods import AMEX, BUILTIN_METHODS, DMP, METHODS, DMPPhaseStop, Observation
 from amex.plan.cache import reference_plan
 from amex.plan.reference import PlanConfig, ReferencePlan
 
@@ -59,10 +59,27 @@ def _command(method, obs):
     return [None if part is None else part.copy() for part in method.step(obs)]
 
 
-@pytest.mark.parametrize("name", sorted(METHODS))
+def _example_plugin():
+    """The documented example plugin's class, from its file (installed or not)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "amex_servo" / "amex_servo.py"
+    spec = importlib.util.spec_from_file_location("amex_servo_example", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.Servo
+
+
+# amex's own methods (not whatever else is installed) and the example plugin, which must meet
+# the contract it documents
+CONTRACT = {**{name: METHODS[name] for name in sorted(BUILTIN_METHODS)}, "servo": None}
+
+
+@pytest.mark.parametrize("name", sorted(CONTRACT))
 @pytest.mark.parametrize("field", ARRAYS)
 def test_nan_into_a_step_never_poisons_the_method(plan, robot, name, field):
-    cls = METHODS[name]
+    cls = CONTRACT[name] or _example_plugin()
     clean = cls(plan, cls.config_class(), DT, robot)
     hit = cls(plan, cls.config_class(), DT, robot)
     for method in (clean, hit):
