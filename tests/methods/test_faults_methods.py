@@ -62,11 +62,13 @@ def _command(method, obs):
 def _example_plugin():
     """The documented example plugin's class, from its file (installed or not)."""
     import importlib.util
+    import sys
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[2] / "examples" / "amex_servo" / "amex_servo.py"
     spec = importlib.util.spec_from_file_location("amex_servo_example", path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses look their module up there
     spec.loader.exec_module(module)
     return module.Servo
 
