@@ -19,7 +19,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 import sys  # noqa: E402
 
-from amex.app.session import closing_line, fail  # noqa: E402  (first: the command's start)
+from amex.app.session import closing_line, fail, say  # noqa: E402  (first: the command's start)
 from amex.core.errors import JobFailed, UsageError  # noqa: E402
 
 INFORMATIONAL = {
@@ -80,5 +80,5 @@ def run_main() -> None:
         for callback in SWEEPS:  # stop the sweep's progress bar before the last line
             callback.stop()
         line, code = closing_line(e)
-        print(line, file=sys.stderr, flush=True)
+        say(line)
         raise SystemExit(code) from None

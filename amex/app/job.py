@@ -22,7 +22,7 @@ from typing import Any
 from amex.app import compose  # noqa: F401 - registers the resolvers in sweep workers
 from amex.app.checks import kept_episodes
 from amex.app.processes import LAUNCHER_PID, signals_raise, watch_parent
-from amex.app.session import OUTPUT, closing_line
+from amex.app.session import OUTPUT, closing_line, say
 from amex.core.errors import AmexError, Interrupted, JobFailed, WriteError
 
 
@@ -90,7 +90,7 @@ def task(cfg: Any) -> None:
             # with the closing line, and the exit code says it stopped (no result is pickled,
             # so the launcher never takes the partial run for a finished one).
             line, code = closing_line(e)
-            print(line, file=sys.stderr, flush=True)
+            say(line)
             raise SystemExit(code) from None
     else:
         with (
@@ -119,5 +119,5 @@ def task(cfg: Any) -> None:
                 )
             summary = run(config, run_dir, progress)
     if not quiet or os.environ.get("SUBMITIT_EXECUTOR"):  # a local sweep's launcher says it
-        print(f"{label}: {run_line(summary)}", file=sys.stderr)
-    print(run_dir, flush=True)
+        say(f"{label}: {run_line(summary)}")
+    say(str(run_dir), sys.stdout)

@@ -31,6 +31,8 @@ from typing import Any, NamedTuple
 from hydra.experimental.callback import Callback
 from omegaconf import OmegaConf
 
+from amex.app.session import say
+
 #: The sweeps of this process (to stop their bars before a closing line).
 SWEEPS: list[SweepProgress] = []
 
@@ -168,7 +170,7 @@ class LineBar:
     def _show(self, force: bool = False) -> None:
         now = time.monotonic()
         if self.n != self._shown and (force or now - self._last >= self.every):
-            print(self._line(), file=sys.stderr, flush=True)
+            say(self._line())
             self._shown, self._last = self.n, now
 
     def update(self, n: int = 1) -> None:
@@ -182,7 +184,7 @@ class LineBar:
 
     def write(self, text: str, file: Any = None) -> None:
         """A line of its own."""
-        print(text, file=file or sys.stderr, flush=True)
+        say(text, file or sys.stderr)
 
     def close(self) -> None:
         """The final count."""
@@ -276,4 +278,4 @@ class SweepProgress(Callback):
         elsewhere = launcher.endswith("SlurmLauncher")  # submitit's: the jobs run on the cluster
         wall = time.perf_counter() - tic
         cost = sweep_cost(self.sweep_dir, self._before, wall, tree_cpu_time(), elsewhere)
-        print(describe(self.sweep_dir, cost), file=sys.stderr, flush=True)
+        say(describe(self.sweep_dir, cost))

@@ -10,7 +10,7 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from amex.core.errors import AmexError, JobFailed
 
@@ -20,9 +20,20 @@ OUTPUT: dict[str, Path] = {}
 PROG = "amex-run"
 
 
+def say(line: str, stream: Any = None) -> None:
+    """Write ``line`` and its newline in one call, flushed.
+
+    Whole lines, even when sweep workers write to the same terminal or log (``print`` writes the
+    newline separately, so another process's line can land between).
+    """
+    stream = sys.stderr if stream is None else stream
+    stream.write(line + "\n")
+    stream.flush()
+
+
 def fail(message: str) -> NoReturn:
     """``amex-run: error: <message>`` on stderr, exit code 2."""
-    print(f"{PROG}: error: {message}", file=sys.stderr)
+    say(f"{PROG}: error: {message}")
     raise SystemExit(2)
 
 
