@@ -35,7 +35,8 @@ def installed(tmp_path_factory):
             (source / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(ROOT / name, source / name)
     wheel_dir = base / "dist"
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", source, "-w", wheel_dir], base, env)
+    pip_wheel = [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q"]
+    _run([*pip_wheel, source, "-w", wheel_dir], base, env)
     (wheel,) = (base / "dist").glob("amex-*.whl")
     _run([sys.executable, "-m", "venv", base / "venv"], base, env)
     pip = base / "venv" / "bin" / "pip"
