@@ -137,6 +137,12 @@ class LiveScenario:
         return v
 
     @property
+    def goal_moved_at(self) -> float | None:
+        """The simulation time of the last change of the goal by hand [s] (None: never)."""
+        times = self._goal.times
+        return times[-1] if times else None
+
+    @property
     def moved_by_hand(self) -> bool:
         """Whether a hand moved anything yet."""
         return bool(self._goal.times) or any(o.times for o in self._obstacles)
@@ -307,7 +313,7 @@ class PaceStats:
         load: the loop's own compute time over the wall time an outer step may take (< 1: it
             keeps pace; the rest of the period it sleeps) [-].
         late_steps: outer steps that found the loop more than :data:`MAX_LAG` behind.
-        keeps_pace: the realtime factor is within 5 % of the speed factor (or paused).
+        keeps_pace: the realtime factor is within 10 % of the speed factor (or paused).
     """
 
     realtime_factor: float
@@ -435,7 +441,7 @@ class LiveRecorder:
         factor = math.nan
         if len(window) >= 2 and window[-1][0] - window[0][0] > 0.2:
             factor = (window[-1][1] - window[0][1]) / (window[-1][0] - window[0][0])
-        keeps = self._paused or not math.isfinite(factor) or factor >= 0.95 * self._speed
+        keeps = self._paused or not math.isfinite(factor) or factor >= 0.9 * self._speed
         self._stats = PaceStats(factor, self._load, self._late, keeps)
 
     def _wait(self, t: float) -> None:

@@ -15,9 +15,10 @@ the plan 5 times); the episode's loop never waits for the page.
 
 from __future__ import annotations
 
-import contextlib
+import logging
 import math
 import threading
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,7 @@ from amex.core.palette import (
     rgb255,
 )
 
+log = logging.getLogger(__name__)
 SUCCESS_RADIUS = 0.03  # [m] the goal sphere drawn (the paper's success radius)
 GIZMO_SCALE = 0.12  # [m] length of a gizmo's arrows
 FRAME_RATE = 25.0  # [1/s] page updates
@@ -80,7 +82,7 @@ def camera_pose(start: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.nda
     if side @ center[:2] < 0:
         side = -side
     side = side / max(np.linalg.norm(side), 1e-9)
-    position = center + np.array([side[0] * 1.2, side[1] * 1.2, 0.4])
+    position = center + np.array([side[0] * 0.95, side[1] * 0.95, 0.35])
     return position, center
 
 
@@ -234,9 +236,14 @@ class LivePage:
     # -- publishing -------------------------------------------------------------------------
     def _publish(self) -> None:
         period = 1.0 / FRAME_RATE
+        failed: set[str] = set()
         while not self._closed.wait(period):
-            with contextlib.suppress(Exception):  # a client gone mid-update: the next frame
+            try:
                 self.update(self.session.state)
+            except Exception as e:  # a client gone mid-update: the next frame; say it once
+                if type(e).__name__ not in failed:
+                    failed.add(type(e).__name__)
+                    log.warning("live page: an update failed: %s: %s", type(e).__name__, e)
 
     def update(self, state: LiveState) -> None:
         """Show ``state`` (one frame)."""
@@ -244,6 +251,12 @@ class LivePage:
             self._new_episode(state)
         if len(state.q):
             self.robot.show(state.q)
+        scenario = self.session.scenario
+        if scenario is not None and scenario.now == state.t:  # as moved by hand since, if paused
+            goal = np.asarray(scenario.goal_at(state.t))
+            obstacles = np.asarray(scenario.obstacles_at(state.t))
+            distance = float(np.linalg.norm(state.tcp - goal))
+            state = replace(state, goal=goal, obstacles=obstacles, distance=distance)
         goal = state.goal
         if (
             not self._dragging
@@ -282,8 +295,10 @@ class LivePage:
             if self.texts[label].value != value:
                 self.texts[label].value = value
         warning = "" if pace.keeps_pace or state.status != "running" else (
-            f"**Cannot keep up with the wall clock**: the loop runs at {pace.realtime_factor:.2f}x "
-            f"(speed {self.session.speed:g}x); its load is {100 * pace.load:.0f} %."
+            f"**Not real time**: the loop runs at {pace.realtime_factor:.2f}x (speed "
+            f"{self.session.speed:g}x); it needs {100 * pace.load:.0f} % of its time"
+            + (" (a slow method: lower the speed)" if pace.load >= 0.8 else
+               " (other processes take the CPU)") + "."
         )  # fmt: skip
         if self.warning.content != warning:
             self.warning.content = warning
@@ -294,14 +309,10 @@ class LivePage:
         color = method_color(state.method)
         path = np.array(self.session.path) if self.session.path else np.zeros((0, 3))
         if len(path) >= 2:
-            self._path_line.points = segments(path)
-            self._path_line.colors = rgb255(color)
-            self._path_line.visible = True
+            _set_line(self._path_line, segments(path), color)
         plan = self.session.plan.points()
         if plan is not None and len(plan) >= 2:
-            self._plan_line.points = segments(plan)
-            self._plan_line.colors = rgb255(lighter(color))
-            self._plan_line.visible = True
+            _set_line(self._plan_line, segments(plan), lighter(color))
         else:
             self._plan_line.visible = False
         history = list(self.session.history)
@@ -348,6 +359,13 @@ class LivePage:
             self.obstacle_fields.append(field)
 
 
+def _set_line(handle: Any, points: np.ndarray, color: str) -> None:
+    """Show line segments ``points`` (m, 2, 3) in ``color`` (viser wants a colour per point)."""
+    handle.points = points
+    handle.colors = np.broadcast_to(np.array(rgb255(color), dtype=np.uint8), points.shape).copy()
+    handle.visible = True
+
+
 def _pace_text(pace: Any, speed: float, status: str) -> str:
     """``1.00x of real time (speed 1x), load 8 %``, or what keeps it from being real time."""
     if status != "running":
@@ -355,5 +373,10 @@ def _pace_text(pace: Any, speed: float, status: str) -> str:
     factor = pace.realtime_factor
     if not math.isfinite(factor):
         return "measuring"
-    verdict = "keeps pace" if pace.keeps_pace else "CANNOT KEEP UP"
+    if pace.keeps_pace:
+        verdict = "keeps pace"
+    elif pace.load < 0.8:
+        verdict = "BEHIND: the machine is busy (the loop itself needs less than its time)"
+    else:
+        verdict = "CANNOT KEEP UP: the loop needs more than its time"
     return f"{factor:.2f}x (speed {speed:g}x), load {100 * pace.load:.0f} %: {verdict}"

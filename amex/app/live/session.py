@@ -224,12 +224,14 @@ class LiveSession:
         self._paused = True
         if self._recorder is not None:
             self._recorder.pause()
+            self._status("paused")
 
     def resume(self) -> None:
         """Run on in real time."""
         self._paused = False
         if self._recorder is not None:
             self._recorder.resume()
+            self._status("running")
 
     @property
     def paused(self) -> bool:
@@ -261,6 +263,11 @@ class LiveSession:
         """Move obstacle ``k`` to ``position`` (3,) [m], now."""
         if self._scenario is not None and 0 <= k < self._scenario.n_obstacles:
             self._scenario.set_obstacle(k, position)
+
+    @property
+    def scenario(self) -> LiveScenario | None:
+        """The running episode's scene."""
+        return self._scenario
 
     def goal_now(self) -> np.ndarray:
         """The true goal at the current simulation time, shape (3,) [m]."""
