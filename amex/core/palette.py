@@ -7,7 +7,7 @@ the spare colours, chosen by its name so that it keeps it from figure to figure.
 Everything that is not a method has a role colour of its own: the goal gold, the obstacle black,
 the reference plan red, annotations (the success radius, the start marker) grey
 (:data:`ROLE_COLORS`). No two of these colours, method or role, are closer than
-:data:`MIN_DISTANCE` in CIELAB (``tests/core/test_palette.py``), and a view draws a method's colour
+:data:`MIN_DISTANCE` in CIELAB (``tests/live/test_colors.py``), and a view draws a method's colour
 only for that method's own lines: its executed path and, lighter (:func:`lighter`), its plan.
 """
 

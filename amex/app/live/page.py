@@ -45,7 +45,7 @@ MAX_SEGMENTS = 600  # segments of a drawn path
 #: The labels of the read-only texts (tests read them from the page).
 TEXTS = ("time [s]", "phase", "distance to goal [m]", "method step [ms]", "real time", "status",
          "recording")  # fmt: skip
-#: Every colour the page draws with, by what it shows (``tests/core/test_palette.py``).
+#: Every colour the page draws with, by what it shows (``tests/live/test_colors.py``).
 COLORS = {
     "goal": GOAL_COLOR,
     "goal_seen": GOAL_COLOR,
