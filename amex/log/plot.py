@@ -158,6 +158,7 @@ def draw_paths(ax: Any, data: LogData) -> None:
             color=OBSTACLE_COLOR,
             alpha=0.3,
             linewidth=0,
+            shade=False,  # the palette's black, not a lit variant of it
             gid="obstacle",
         )
     if len(radii):

@@ -99,10 +99,12 @@ class LivePage:
         plan = session.context.plan
         scene, gui = server.scene, server.gui
         server.gui.configure_theme(control_width="large")
-        scene.add_grid("/grid", width=2.0, height=2.0, cell_color=rgb255(NEUTRAL_COLOR))
+        self._grid = scene.add_grid(
+            "/grid", width=2.0, height=2.0, cell_color=rgb255(NEUTRAL_COLOR)
+        )
         self.robot = RobotView(server, robot, "/robot")
         reference = np.asarray(plan.y)[:, :3]
-        scene.add_line_segments(
+        self._reference_line = scene.add_line_segments(
             "/reference", segments(reference), colors=rgb255(REFERENCE_COLOR), thickness=0.004
         )
         self._plan_line = scene.add_line_segments(
@@ -116,10 +118,10 @@ class LivePage:
             "/goal", scale=GIZMO_SCALE, line_width=4.0, disable_rotations=True, position=goal,
             depth_test=False,
         )  # fmt: skip
-        scene.add_icosphere(
+        self._goal_sphere = scene.add_icosphere(
             "/goal/sphere", radius=SUCCESS_RADIUS, color=rgb255(GOAL_COLOR), opacity=0.45
         )
-        scene.add_icosphere("/goal/dot", radius=0.006, color=rgb255(GOAL_COLOR))
+        self._goal_dot = scene.add_icosphere("/goal/dot", radius=0.006, color=rgb255(GOAL_COLOR))
         self._goal_seen = scene.add_icosphere(
             "/goal_seen", radius=0.004, color=rgb255(GOAL_COLOR), opacity=0.8
         )
@@ -233,6 +235,26 @@ class LivePage:
         else:
             self.session.start_recording()
 
+    def colors(self) -> list[tuple[str, str]]:
+        """What the page draws in which colour, read back from its scene and plot handles.
+
+        ``(role, #rrggbb)``: roles ``goal``, ``obstacle``, ``reference``, ``neutral`` and
+        ``method`` (the running method's path and plan, and its phase in the plot).
+        """
+        uses = [
+            ("reference", _hex(self._reference_line.colors)),
+            ("goal", _hex(self._goal_sphere.color)),
+            ("goal", _hex(self._goal_dot.color)),
+            ("goal", _hex(self._goal_seen.color)),
+            ("neutral", _hex(self._grid.cell_color)),
+            ("neutral", str(self.plot.series[1]["stroke"])),
+            ("method", str(self.plot.series[2]["stroke"])),
+        ]
+        uses += [("obstacle", _hex(sphere.color)) for sphere in self._obstacle_spheres]
+        uses += [("method", _hex(line.colors)) for line in (self._path_line, self._plan_line)
+                 if line.visible]  # fmt: skip
+        return uses
+
     # -- publishing -------------------------------------------------------------------------
     def _publish(self) -> None:
         period = 1.0 / FRAME_RATE
@@ -329,6 +351,10 @@ class LivePage:
         self._plan_line.visible = False
         if self.method.value != state.method:
             self.method.value = state.method
+        series = list(self.plot.series)
+        if series[2].get("stroke") != method_color(state.method):
+            series[2] = {**series[2], "stroke": method_color(state.method)}
+            self.plot.series = tuple(series)
         n = len(state.radii)
         if n != len(self.obstacle_gizmos):
             self._obstacles(state)
@@ -357,6 +383,12 @@ class LivePage:
             self.obstacle_gizmos.append(gizmo)
             self._obstacle_spheres.append(sphere)
             self.obstacle_fields.append(field)
+
+
+def _hex(color: Any) -> str:
+    """A viser colour (RGB integers, or an array of them per point) as ``#rrggbb``."""
+    r, g, b = (int(c) for c in np.asarray(color).reshape(-1, 3)[0])
+    return f"#{r:02x}{g:02x}{b:02x}"
 
 
 def _set_line(handle: Any, points: np.ndarray, color: str) -> None:
