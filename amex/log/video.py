@@ -294,8 +294,13 @@ def render_video(
         motion = tracks[0].scenario.goal_start - tracks[0].tcp[0]
         for panel in panels:
             aim_camera(panel.camera, look, motion, margin=FRAME_MARGIN)
+        font = (
+            mujoco.mjtFontScale.mjFONTSCALE_150
+            if width >= 480
+            else mujoco.mjtFontScale.mjFONTSCALE_100
+        )
         for panel in panels:
-            contexts.append(mujoco.MjrContext(panel.model, mujoco.mjtFontScale.mjFONTSCALE_150))
+            contexts.append(mujoco.MjrContext(panel.model, font))
         viewport = mujoco.MjrRect(0, 0, width, height)
         frames = int(np.floor(end / speed * fps + 1e-9)) + 1
         hold = int(round(fps))  # a second on the last frame, outcome shown
