@@ -18,6 +18,7 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 from dataclasses import replace
 from typing import Any
 
@@ -25,6 +26,7 @@ import numpy as np
 
 from amex.app.live.robot_view import RobotView
 from amex.app.live.session import LiveSession, LiveState
+from amex.core.errors import AmexError
 from amex.core.palette import (
     GOAL_COLOR,
     NEUTRAL_COLOR,
@@ -93,6 +95,7 @@ class LivePage:
         self.server, self.session = server, session
         self._closed = threading.Event()
         self._dragging = False
+        self._notice = ("", 0.0)  # a message shown as the status until a time
         self._episode = -1
         self._frame = 0
         robot = session.context.robot
@@ -220,7 +223,11 @@ class LivePage:
     def _on_method(self, event: Any) -> None:
         if event.client is None or self.method.value == self.session.state.method:
             return
-        self.session.switch_method(self.method.value)
+        try:
+            self.session.switch_method(self.method.value)
+        except AmexError as e:  # its configuration does not compose: say so on the page
+            message = f"cannot switch to {self.method.value}: {e}"[:300]
+            self._notice = (message, time.monotonic() + 8.0)
 
     def _on_pause(self) -> None:
         if self.session.paused:
@@ -313,6 +320,8 @@ class LivePage:
             "recording": state.recording or (
                 f"last: {self.session.last_log}" if self.session.last_log else "-"),
         }  # fmt: skip
+        if time.monotonic() < self._notice[1]:
+            values["status"] = self._notice[0]
         for label, value in values.items():
             if self.texts[label].value != value:
                 self.texts[label].value = value

@@ -299,6 +299,8 @@ class LiveSession:
                 self._episode_of(request)
             except AmexError as e:  # a method or a log that cannot be built: say so, wait
                 self._status(f"error: {e}")
+            except Exception as e:  # a plugin's own failure: the session goes on
+                self._status(f"error: {type(e).__name__}: {e}"[:300])
 
     def _scene_for(self, request: _Request) -> Scenario:
         if request.scene == "next":
