@@ -13,7 +13,8 @@ is left out, and a robot with no visual left is drawn with its collision shapes.
 are added to the scene per frame (:class:`SceneDrawer`), so nothing but the arm lives in the model.
 
 Framing: :func:`frame_points` gives the points the camera must see, the arm's bodies at the
-configurations shown included, for :func:`aim_camera`.
+configurations shown included, for :func:`aim_camera`; :func:`split_viewport` and
+:func:`draw_caption` keep captions in bands above and below the scene, off the robot.
 
 Headless OpenGL: ``MUJOCO_GL`` if set (``egl`` or ``osmesa``), else EGL, else OSMesa; Debian's
 ``libegl1``, ``libegl-mesa0`` and ``libgl1-mesa-dri`` provide EGL without a GPU (Mesa's software
@@ -427,3 +428,31 @@ def frame_points(model: Any, addresses: np.ndarray, q: np.ndarray, every: int = 
     if len(q):
         rows = np.concatenate([rows, q[-1:]])
     return np.concatenate([np.zeros((1, 3)), arm_points(model, addresses, rows)])
+
+
+BAND_RGB = (0.97, 0.97, 0.98)  # the caption bands' background
+
+
+def split_viewport(viewport: Any, band: int) -> tuple[Any, Any, Any]:
+    """``viewport`` as (scene, top band, bottom band), each band ``band`` pixels high.
+
+    Captions go into the bands, never over the scene.
+    """
+    import mujoco
+
+    left, bottom, width, height = viewport.left, viewport.bottom, viewport.width, viewport.height
+    band = max(0, min(int(band), height // 3))
+    scene = mujoco.MjrRect(left, bottom + band, width, height - 2 * band)
+    top = mujoco.MjrRect(left, bottom + height - band, width, band)
+    low = mujoco.MjrRect(left, bottom, width, band)
+    return scene, top, low
+
+
+def draw_caption(context: Any, rect: Any, text: str) -> None:
+    """Fill the band ``rect`` and write one line of ``text`` in it (after ``mjr_render``)."""
+    import mujoco
+
+    mujoco.mjr_rectangle(rect, *BAND_RGB, 1.0)
+    if text:
+        font = mujoco.mjtFont.mjFONT_NORMAL
+        mujoco.mjr_overlay(font, mujoco.mjtGridPos.mjGRID_LEFT, rect, text, "", context)

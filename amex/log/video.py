@@ -33,12 +33,15 @@ from amex.core.palette import GOAL_COLOR, OBSTACLE_COLOR, REFERENCE_COLOR, metho
 from amex.core.palette import method_label as label_of
 from amex.log.reader import LogData, read_log
 from amex.log.render import (
+    BAND_RGB,
     SceneDrawer,
     aim_camera,
     arm_model,
+    draw_caption,
     frame_points,
     gl_context,
     joint_addresses,
+    split_viewport,
 )
 from amex.sim.scenario import Scenario
 
@@ -47,7 +50,7 @@ SUCCESS_RADIUS = 0.03  # [m] the goal sphere drawn (the paper's success radius)
 MAX_PANELS = 3
 FRAME_MARGIN = 1.05  # the bounding sphere of the arm and the scene, plus the links' own size
 BAND = 30  # [px] height of the caption band above the scene and the outcome band below it
-BAND_RGB = (0.97, 0.97, 0.98)
+__all__ = ["BAND", "BAND_RGB", "render_video", "track_of"]
 
 
 @dataclass(frozen=True)
@@ -219,22 +222,13 @@ class _Panel:
             draw.sphere(center, float(radius), rgba(OBSTACLE_COLOR, 0.85))
         upto = _at(track.tcp_t, t_show) + 1
         draw.path(track.tcp[:upto], rgba(self.color), 4.0, 80)
-        width, height = viewport.width, viewport.height
-        band = min(BAND, height // 6)
-        scene_view = mujoco.MjrRect(viewport.left, viewport.bottom + band, width, height - 2 * band)
-        top = mujoco.MjrRect(viewport.left, viewport.bottom + height - band, width, band)
-        bottom = mujoco.MjrRect(viewport.left, viewport.bottom, width, band)
+        scene_view, top, bottom = split_viewport(viewport, min(BAND, viewport.height // 6))
         mujoco.mjr_render(scene_view, self.scene, context)
-        for rect in (top, bottom):  # the bands: text never covers the scene
-            mujoco.mjr_rectangle(rect, *BAND_RGB, 1.0)
         caption = f"{label_of(track.method)}    t = {t_show:5.2f} s"
         if track.phase_name and len(track.phase_t):
             caption += f"    {track.phase_name} = {track.phase[_at(track.phase_t, t_show)]:.3f}"
-        font = mujoco.mjtFont.mjFONT_NORMAL
-        mujoco.mjr_overlay(font, mujoco.mjtGridPos.mjGRID_LEFT, top, caption, "", context)
-        if t >= track.end:
-            outcome = _outcome_text(track.outcome)
-            mujoco.mjr_overlay(font, mujoco.mjtGridPos.mjGRID_LEFT, bottom, outcome, "", context)
+        draw_caption(context, top, caption)  # the bands: text never covers the scene
+        draw_caption(context, bottom, _outcome_text(track.outcome) if t >= track.end else "")
 
 
 @dataclass(frozen=True)
