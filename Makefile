@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-kernels test-viewer render-deps lint bench table figure-runs figures studies paper ablation ablation-table clean
+.PHONY: install run test test-slow test-kernels test-viewer test-live render-deps lint bench table figure-runs figures studies paper ablation ablation-table clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,20 @@ $(VIEWER)/node_modules/.installed: $(VIEWER)/package.json $(VIEWER)/package-lock
 
 test-viewer: $(STAMP) $(VIEWER)/node_modules/.installed
 	$(BIN)/python -m pytest -q -m viewer -p no:cacheprovider
+
+## The live page (amex-live) in a real browser: Debian's chromium, installed here if missing,
+## driven by playwright (pip extra `browser`; no browser download): the goal gizmo dragged with
+## the mouse for AMEX, DMP and CR, screenshots in $(LIVE_SHOTS) (~2 min).
+LIVE_SHOTS ?= runs/test-live
+BROWSER_STAMP := $(VENV)/.browser-stamp
+$(BROWSER_STAMP): $(STAMP)
+	@command -v chromium >/dev/null || { apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium; }
+	$(BIN)/python -m pip install --quiet -e ".[dev,bench,browser]"
+	touch $@
+
+test-live: $(BROWSER_STAMP)
+	AMEX_LIVE_SHOTS=$(LIVE_SHOTS) $(BIN)/python -m pytest -q -m live -p no:cacheprovider -s
 
 ## Headless OpenGL for amex-log video and Fig. 4's render: Debian's EGL (Mesa), if missing.
 render-deps: $(STAMP)

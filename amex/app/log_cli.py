@@ -88,6 +88,9 @@ def _parser() -> _Parser:
     p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
     p.add_argument("--size", default="640x480", metavar="WxH", help="one panel [px]")
     p.add_argument("--speed", type=float, default=1.0, help="simulated s per s of film")
+    p.add_argument(
+        "--capsules", action="store_true", help="draw the collision capsules, not the meshes"
+    )
     return parser
 
 
@@ -345,9 +348,11 @@ def video(args: argparse.Namespace) -> None:
     if not 0.01 <= args.speed <= 100.0:
         raise LogError(f"invalid --speed {args.speed:g}; valid: 0.01..100 simulated s per s")
     output = _output(args.output or args.files[0].with_suffix(".mp4"), [".mp4"], "an MP4 file")
+    geometry = "collision" if args.capsules else "visual"
     info = render_video(
-        args.files, output, fps=args.fps, width=width, height=height, speed=args.speed
-    )
+        args.files, output, fps=args.fps, width=width, height=height, speed=args.speed,
+        geometry=geometry,
+    )  # fmt: skip
     if info.different_environments:
         sys.stderr.write(f"{PROG}: note: the logs are of different environments\n")
     sys.stdout.write(

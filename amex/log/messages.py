@@ -24,16 +24,34 @@ from foxglove.messages import (
     Vector3,
 )
 
+from amex.core import palette
 from amex.log.frames import IDENTITY, WORLD_FRAME, vec
 from amex.sim.metrics import EpisodeResult
 
 NUM = "%.9g"  # JSON number format of the per-step channels (9 significant digits)
-GOAL_COLOR = Color(r=0.1, g=0.75, b=0.2, a=0.35)
-GOAL_DOT_COLOR = Color(r=0.1, g=0.6, b=0.1, a=1.0)
-OBSTACLE_COLOR = Color(r=0.85, g=0.15, b=0.1, a=0.6)
-PATH_COLOR = Color(r=0.1, g=0.35, b=0.95, a=1.0)
-PLAN_COLOR = Color(r=1.0, g=0.55, b=0.0, a=1.0)
-REFERENCE_COLOR = Color(r=0.45, g=0.45, b=0.45, a=1.0)
+
+
+def color(hex_color: str, alpha: float = 1.0) -> Color:
+    """A palette colour (``#rrggbb``, :mod:`amex.core.palette`) as Foxglove's Color."""
+    r, g, b, a = palette.rgba(hex_color, alpha)
+    return Color(r=r, g=g, b=b, a=a)
+
+
+#: The scene's colours, from the palette: the goal gold, the obstacle black, the reference red.
+GOAL_COLOR = color(palette.GOAL_COLOR, 0.35)
+GOAL_DOT_COLOR = color(palette.GOAL_COLOR)
+OBSTACLE_COLOR = color(palette.OBSTACLE_COLOR, 0.6)
+REFERENCE_COLOR = color(palette.REFERENCE_COLOR)
+
+
+def path_color(method: str) -> Color:
+    """The executed TCP path of ``method``: its colour."""
+    return color(palette.method_color(method))
+
+
+def plan_color(method: str) -> Color:
+    """The current plan of ``method``: its colour, lighter."""
+    return color(palette.lighter(palette.method_color(method)))
 
 
 def json_template(fields: list[tuple[str, int]]) -> str:

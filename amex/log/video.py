@@ -1,15 +1,21 @@
 """``amex-log video``: an episode log as an MP4 film, or 2-3 logs of one environment side by side.
 
 Each frame is a MuJoCo offscreen render (:mod:`amex.log.render`) of the logged arm at that instant
-of simulation time, with the goal (gold: the 0.03 m success sphere and its path so far), the
-obstacles (black spheres; a moving obstacle's whole path as a thin line), the reference plan (red)
-and the executed TCP path so far, in the method's colour (:mod:`amex.core.palette`). The caption
-gives the method, the time and the method's phase (AMEX s, DMP x, the tracked index), and at the
-end the outcome. Episodes that ended earlier than the longest one hold their last frame. Frames
-are encoded as H.264 (yuv420p, plays everywhere) by the ffmpeg that imageio-ffmpeg ships.
+of simulation time, drawn with the robot's visual meshes (``geometry="collision"``, the CLI's
+``--capsules``: its collision shapes), with the goal (gold: the 0.03 m success sphere and its path
+so far), the obstacles (black spheres; a moving obstacle's whole path as a thin line), the
+reference plan (red) and the executed TCP path so far, in the method's colour
+(:mod:`amex.core.palette`). The camera frames the whole arm over the episode and the scene
+(:func:`~amex.log.render.frame_points`). The caption sits in a band above the scene and the outcome
+in one below it, so that no text covers the robot: the method, the time and the method's phase
+(AMEX s, DMP x, the tracked index), and at the end the outcome. Episodes that ended earlier than
+the longest one hold their last frame. A log recorded by ``amex-live`` (metadata ``live``) draws
+its goal where the method saw it (``/goal``), since a hand moved it. Frames are encoded as H.264
+(yuv420p, plays everywhere) by the ffmpeg that imageio-ffmpeg ships.
 
-Cost: about 15 ms per 640 x 480 panel and frame with Mesa's software EGL on one core, so a 6 s
-episode at 30 frames/s takes ~4 s; ~80-150 kB per second of film.
+Cost: about 15 ms (capsules) to 30 ms (the Panda's meshes) per 640 x 480 panel and frame with
+Mesa's software EGL on one core, so a 6 s episode at 30 frames/s takes ~4-8 s; ~80-150 kB per
+second of film.
 """
 
 from __future__ import annotations
@@ -27,17 +33,24 @@ from amex.core.palette import GOAL_COLOR, OBSTACLE_COLOR, REFERENCE_COLOR, metho
 from amex.core.palette import method_label as label_of
 from amex.log.reader import LogData, read_log
 from amex.log.render import (
+    BAND_RGB,
     SceneDrawer,
     aim_camera,
     arm_model,
+    draw_caption,
+    frame_points,
     gl_context,
     joint_addresses,
+    split_viewport,
 )
 from amex.sim.scenario import Scenario
 
 PHASE_NAMES = {"s": "phase s", "phase": "phase x", "index": "index"}  # as the layout's plot
 SUCCESS_RADIUS = 0.03  # [m] the goal sphere drawn (the paper's success radius)
 MAX_PANELS = 3
+FRAME_MARGIN = 1.05  # the bounding sphere of the arm and the scene, plus the links' own size
+BAND = 30  # [px] height of the caption band above the scene and the outcome band below it
+__all__ = ["BAND", "BAND_RGB", "render_video", "track_of"]
 
 
 @dataclass(frozen=True)
@@ -59,6 +72,21 @@ class EpisodeTrack:
     phase: np.ndarray  # (k,)
     outcome: dict[str, Any]
     environment: tuple[Any, ...]  # (task, env, seed)
+    goal_t: np.ndarray | None = None  # (g,) [s]: a live log's goal samples (else the scenario's)
+    goal: np.ndarray | None = None  # (g, 3) [m]
+
+    def goal_at(self, t: float) -> np.ndarray:
+        """The goal at ``t`` [s]: the logged one of a live log, else the scenario's."""
+        if self.goal is not None and self.goal_t is not None and len(self.goal):
+            return self.goal[_at(self.goal_t, t)]
+        return self.scenario.goal_at(t)
+
+    def goal_path(self, t: float, n: int = 40) -> np.ndarray:
+        """The goal's path from 0 to ``t`` [s] (the scenario's stops moving at its stop time)."""
+        if self.goal is not None and self.goal_t is not None and len(self.goal):
+            return self.goal[: _at(self.goal_t, t) + 1]
+        times = np.linspace(0.0, min(t, self.scenario.goal_stop_time), n)
+        return np.array([self.scenario.goal_at(g) for g in times])
 
     @property
     def end(self) -> float:
@@ -95,6 +123,7 @@ def track_of(data: LogData) -> EpisodeTrack:
     episode = data.metadata.get("episode", {})
     first = [m.data for m in data.messages.get("/method", [])[:5] if isinstance(m.data, dict)]
     phase_key = next((k for k in PHASE_NAMES if any(k in d for d in first)), "")
+    live = bool(episode.get("live")) and bool(data.messages.get("/goal"))
     return EpisodeTrack(
         method=str(episode.get("method", "?")),
         urdf_path=str(robot["urdf_path"]),
@@ -111,6 +140,8 @@ def track_of(data: LogData) -> EpisodeTrack:
         phase=data.series("/method", phase_key) if phase_key else np.zeros(0),
         outcome=data.outcome or {},
         environment=tuple(episode.get(k) for k in ("task", "env", "seed")),
+        goal_t=data.times("/goal") if live else None,
+        goal=data.series("/goal", "position").reshape(-1, 3) if live else None,
     )
 
 
@@ -130,11 +161,13 @@ def _outcome_text(outcome: dict[str, Any]) -> str:
 class _Panel:
     """One episode's view: its model data, scene and camera."""
 
-    def __init__(self, track: EpisodeTrack, width: int, height: int) -> None:
+    def __init__(self, track: EpisodeTrack, width: int, height: int, geometry: str) -> None:
         import mujoco
 
         self.track = track
-        self.model = arm_model(track.urdf_path, samples=0, package_dirs=track.package_dirs)
+        self.model = arm_model(
+            track.urdf_path, samples=0, package_dirs=track.package_dirs, geometry=geometry
+        )
         self.model.vis.global_.offwidth, self.model.vis.global_.offheight = width, height
         self.data = mujoco.MjData(self.model)
         self.addresses = joint_addresses(self.model, track.joint_names)
@@ -150,11 +183,13 @@ class _Panel:
         self.color = method_color(track.method)
 
     def look_points(self) -> np.ndarray:
-        """What the camera must see: the paths, the goal's and the obstacles' positions."""
+        """What the camera must see: the arm over the episode, paths, goal and obstacles."""
         track, s = self.track, self.track.scenario
-        goals = [s.goal_at(t) for t in (0.0, s.goal_stop_time)]
+        goals = track.goal_path(track.end)
         obstacles = [s.obstacles_at(t) for t in (0.0, track.end)]
-        return np.concatenate([track.reference, track.tcp, *obstacles, np.array(goals)])
+        every = max(1, len(track.q) // 20)
+        arm = frame_points(self.model, self.addresses, track.q, every)
+        return np.concatenate([track.reference, track.tcp, *obstacles, goals, arm])
 
     def draw(self, context: Any, t: float, viewport: Any) -> None:
         import mujoco
@@ -177,39 +212,23 @@ class _Panel:
         draw = SceneDrawer(self.scene)
         draw.floor(np.asarray(self.camera.lookat[:2]), 4.0)
         draw.path(track.reference, rgba(REFERENCE_COLOR), 3.0, 50)
-        goal_times = np.linspace(0.0, min(t_show, s.goal_stop_time), 40)
-        draw.path(np.array([s.goal_at(g) for g in goal_times]), rgba(GOAL_COLOR), 4.0, 30)
-        draw.sphere(s.goal_at(t_show), SUCCESS_RADIUS, rgba(GOAL_COLOR, 0.35))
-        draw.sphere(s.goal_at(t_show), 0.006, rgba(GOAL_COLOR))
+        draw.path(track.goal_path(t_show), rgba(GOAL_COLOR), 4.0, 30)
+        goal = track.goal_at(t_show)
+        draw.sphere(goal, SUCCESS_RADIUS, rgba(GOAL_COLOR, 0.35))
+        draw.sphere(goal, 0.006, rgba(GOAL_COLOR))
         for path in self.obstacle_paths:
             draw.path(path, rgba(OBSTACLE_COLOR, 0.6), 2.0, 30)
         for center, radius in zip(s.obstacles_at(t_show), s.obstacle_radii, strict=False):
             draw.sphere(center, float(radius), rgba(OBSTACLE_COLOR, 0.85))
         upto = _at(track.tcp_t, t_show) + 1
         draw.path(track.tcp[:upto], rgba(self.color), 4.0, 80)
-        mujoco.mjr_render(viewport, self.scene, context)
-        title = f"{label_of(track.method)}\nt\n"
-        values = f" \n{t_show:5.2f} s\n"
+        scene_view, top, bottom = split_viewport(viewport, min(BAND, viewport.height // 6))
+        mujoco.mjr_render(scene_view, self.scene, context)
+        caption = f"{label_of(track.method)}    t = {t_show:5.2f} s"
         if track.phase_name and len(track.phase_t):
-            title += f"{track.phase_name}\n"
-            values += f"{track.phase[_at(track.phase_t, t_show)]:.3f}\n"
-        mujoco.mjr_overlay(
-            mujoco.mjtFont.mjFONT_NORMAL,
-            mujoco.mjtGridPos.mjGRID_TOPLEFT,
-            viewport,
-            title.rstrip("\n"),
-            values.rstrip("\n"),
-            context,
-        )
-        if t >= track.end:
-            mujoco.mjr_overlay(
-                mujoco.mjtFont.mjFONT_NORMAL,
-                mujoco.mjtGridPos.mjGRID_BOTTOMLEFT,
-                viewport,
-                _outcome_text(track.outcome),
-                "",
-                context,
-            )
+            caption += f"    {track.phase_name} = {track.phase[_at(track.phase_t, t_show)]:.3f}"
+        draw_caption(context, top, caption)  # the bands: text never covers the scene
+        draw_caption(context, bottom, _outcome_text(track.outcome) if t >= track.end else "")
 
 
 @dataclass(frozen=True)
@@ -232,6 +251,7 @@ def render_video(
     width: int = 640,
     height: int = 480,
     speed: float = 1.0,
+    geometry: str = "visual",
 ) -> VideoInfo:
     """Film ``logs`` (1-3, side by side) into ``output`` (MP4, H.264); see the module notes.
 
@@ -242,6 +262,7 @@ def render_video(
         width: width of one panel [px] (a multiple of 16 keeps the encoder from resizing).
         height: height [px].
         speed: simulated seconds per second of film.
+        geometry: the arm's ``"visual"`` meshes or its ``"collision"`` shapes.
 
     Raises:
         LogError: a log cannot be read or filmed; RenderError: no headless OpenGL;
@@ -262,13 +283,18 @@ def render_video(
     gl = gl_context(width, height)
     contexts: list[Any] = []
     try:
-        panels = [_Panel(track, width, height) for track in tracks]
+        panels = [_Panel(track, width, height, geometry) for track in tracks]
         look = np.concatenate([panel.look_points() for panel in panels])
         motion = tracks[0].scenario.goal_start - tracks[0].tcp[0]
         for panel in panels:
-            aim_camera(panel.camera, look, motion)
+            aim_camera(panel.camera, look, motion, margin=FRAME_MARGIN)
+        font = (
+            mujoco.mjtFontScale.mjFONTSCALE_150
+            if width >= 480
+            else mujoco.mjtFontScale.mjFONTSCALE_100
+        )
         for panel in panels:
-            contexts.append(mujoco.MjrContext(panel.model, mujoco.mjtFontScale.mjFONTSCALE_150))
+            contexts.append(mujoco.MjrContext(panel.model, font))
         viewport = mujoco.MjrRect(0, 0, width, height)
         frames = int(np.floor(end / speed * fps + 1e-9)) + 1
         hold = int(round(fps))  # a second on the last frame, outcome shown

@@ -27,6 +27,10 @@ topic                schema                    content
 ``/episode``         JSON                      the episode's result (once, at the end)
 ==================== ========================= ==================================================
 
+Scene colours are the palette's (:mod:`amex.core.palette`): the goal gold, the obstacles black,
+the reference red, the executed path in the method's colour (the ``method`` of the metadata) and
+its plan lighter.
+
 Every JSON schema declares all the fields its messages carry, in the form browser viewers accept
 (:func:`amex.log.messages.viewer_schema_problems`: no arrays of arrays, every array has ``items``).
 
@@ -188,6 +192,8 @@ class EpisodeLogger:
         self._max_line_points = max(2, int(max_line_points))
         self._reference = M.points(np.asarray(plan.y)[:, :3], len(plan.y))
         self._path_points: list[Point3] = []
+        method = str(metadata.get("method", ""))
+        self._path_color, self._plan_color = M.path_color(method), M.plan_color(method)
         self._steps = 0
         self._t = 0.0
         self._next_reference = 0.0
@@ -462,7 +468,7 @@ class EpisodeLogger:
             if isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3:
                 points = M.points(plan, self._max_line_points)
                 self._scene_plan.log(
-                    M.line_update(stamp, "plan", points, M.PLAN_COLOR, 3.0), log_time=ns
+                    M.line_update(stamp, "plan", points, self._plan_color, 3.0), log_time=ns
                 )
         if t >= self._next_reference:
             self._publish_reference(t)
@@ -526,7 +532,9 @@ class EpisodeLogger:
 
     def _publish_path(self, t: float) -> None:
         if self._path_points:
-            update = M.line_update(sim_stamp(t), "tcp_path", self._path_points, M.PATH_COLOR, 3.0)
+            update = M.line_update(
+                sim_stamp(t), "tcp_path", self._path_points, self._path_color, 3.0
+            )
             self._scene_path.log(update, log_time=round(t * 1e9))
 
     def finish(self, result: EpisodeResult) -> None:
