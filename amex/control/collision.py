@@ -27,6 +27,7 @@ class Proximity(NamedTuple):
         point: witness point on the arm, in the world frame, shape (3,) [m].
         joint_id: Pinocchio joint the arm shape moves with.
         obstacle: index of the obstacle.
+        shape: index of the arm shape in :attr:`amex.robot.RobotModel.capsules`.
     """
 
     distance: float
@@ -34,6 +35,7 @@ class Proximity(NamedTuple):
     point: np.ndarray
     joint_id: int
     obstacle: int
+    shape: int = 0
 
 
 class CollisionModel:
@@ -110,8 +112,13 @@ class CollisionModel:
                 away = p_arm - c
                 normal = away / max(float(np.sqrt(away @ away)), 1e-12)
             arm = self._pair_arm[k]
-            out.append(Proximity(d, normal, p_arm, self._joint_of[arm], self._pair_obstacle[k]))
+            obstacle = self._pair_obstacle[k]
+            out.append(Proximity(d, normal, p_arm, self._joint_of[arm], obstacle, arm))
         return out
+
+    def obstacle_center(self, k: int) -> np.ndarray:
+        """Centre of obstacle sphere ``k`` in the world frame, shape (3,) [m]."""
+        return self._placements[k].translation
 
     def min_distance(self, data: pin.Data) -> float:
         """Smallest arm-obstacle distance [m] (``inf`` without obstacles)."""

@@ -30,11 +30,14 @@ from scipy.linalg.lapack import dposv
 from amex.control import kernels
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
-from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, TaskTerms
-from amex.core.errors import SolverError
+from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, ProxyMap, TaskTerms
+from amex.core.errors import ConfigError, SolverError
 from amex.core.types import PD, Command
 from amex.robot import RobotModel
 from amex.robot.geometry import joint_metric
+
+#: Values of the collision task (``controller.collision_cost``): ours, the authors'.
+COLLISION_COSTS = ("hinge", "proxy")
 
 
 @dataclass
@@ -56,6 +59,11 @@ class ControllerGains:
         drift: subtract the TCP tasks' drift J_dot v (the original did not).
         joint_only: joint-target commands (CR) are tracked by the joint task alone, without the
             damping and collision tasks (the authors' CR controller).
+        collision_cost: the collision task's value: ``hinge``, the penetration of the margin
+            [m] (ours, :class:`~amex.control.tasks.CollisionMap`), or ``proxy``, the authors'
+            dimensionless proxy cost (:class:`~amex.control.tasks.ProxyMap`).
+        proxy_arm_radii: the proxy's radius of each arm capsule [m]; empty: their bounding radii.
+        proxy_obstacle_radius: the proxy's radius of the obstacles [m].
     """
 
     col: PD = field(default_factory=lambda: PD(2500.0, 100.0, 10.0))
@@ -66,6 +74,16 @@ class ControllerGains:
     metric: str = "identity"
     drift: bool = True
     joint_only: bool = False
+    collision_cost: str = "hinge"
+    proxy_arm_radii: list[float] = field(default_factory=list)  # [m]
+    proxy_obstacle_radius: float = 0.02  # [m] the original's 0.1 m at scale 0.2
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` for an unknown ``collision_cost``."""
+        if self.collision_cost not in COLLISION_COSTS:
+            raise ConfigError.invalid(
+                "controller.collision_cost", self.collision_cost, COLLISION_COSTS
+            )
 
 
 @dataclass
@@ -127,11 +145,14 @@ class OperationalSpaceController:
         self.pos_map = PositionMap()
         self.dir_map = AxisMap()
         self.joint_map = JointMap(robot.nv)
-        self.col_map = (
-            CollisionMap(collision, gains.margin)
-            if collision is not None and collision.n_obstacles > 0
-            else None
-        )
+        self.col_map: CollisionMap | None = None
+        if collision is not None and collision.n_obstacles > 0:
+            gains.validate()
+            if gains.collision_cost == "proxy":
+                radii = gains.proxy_arm_radii
+                self.col_map = ProxyMap(collision, gains.margin, radii, gains.proxy_obstacle_radius)
+            else:
+                self.col_map = CollisionMap(collision, gains.margin)
         self.q_rest = robot.q0.copy() if q_rest is None else np.array(q_rest, dtype=float)
         self.q_rest.flags.writeable = False  # packed into the kernel's record below
         self._zeros = np.zeros(robot.nv)

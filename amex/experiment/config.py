@@ -46,6 +46,12 @@ class ControllerConfig(ControllerGains):
 
     Attributes:
         margin: collision margin (original 0.1 m; scene units, :mod:`amex.core.scaling`) [m].
+        proxy_arm_radii: with ``collision_cost=proxy``, the radius of each arm capsule in the
+            authors' proxy cost (their swift mesh radii: 0.3 m for a link of the chain, 2e-4 m
+            for its TCP; a length in original units); empty: each capsule's bounding radius
+            (half length + radius), which on the chain are theirs [m].
+        proxy_obstacle_radius: the obstacles' radius in the proxy cost (theirs 0.1 m; original
+            units) [m].
         disturbance: compensation of unmodelled torques: ``none`` (the paper's controller),
             ``observer`` (generalized-momentum observer) or ``integral`` (integral action on the
             task errors); :mod:`amex.control.disturbance`. Dynamic simulation only.
@@ -57,6 +63,8 @@ class ControllerConfig(ControllerGains):
 
     # in original units here (the controller takes scene units): redeclared with its scale power
     margin: float = field(default=0.1, metadata=scaled(1))
+    proxy_arm_radii: list[float] = field(default_factory=list, metadata=scaled(1))
+    proxy_obstacle_radius: float = field(default=0.1, metadata={**scaled(1), **limits(gt=0)})
     disturbance: str = "none"
     observer_bandwidth: float = field(default=20.0, metadata=limits(gt=0))
     observer_limit: float = field(default=1.0, metadata=limits(gt=0, le=1))
@@ -74,7 +82,8 @@ class ControllerConfig(ControllerGains):
         )
 
     def validate(self) -> None:
-        """Raise :class:`ConfigError` for an unknown ``disturbance`` (run by ``check_tree``)."""
+        """Raise :class:`ConfigError` for an unknown ``disturbance`` or ``collision_cost``."""
+        super().validate()
         self.compensation().validate()
 
 
@@ -98,6 +107,9 @@ class RunConfig:
             authors' code did; :mod:`amex.sim.episode`).
         state_lag: methods and the stop rule see the task state one inner step late, as in the
             authors' loop (:mod:`amex.sim.episode`).
+        final_time: ``elapsed`` (the time of the episode's last step) or ``samples`` (the
+            authors' count: their joint samples times 1 ms, 1-2 ms more;
+            :func:`amex.sim.loop.authors_samples`).
         implementation: ``ours`` or ``original``: amex, dmp and cr as the authors' harness ran
             them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
         log: ``none`` or ``full`` (one MCAP file per episode).
@@ -128,6 +140,7 @@ class RunConfig:
     stop_radius: float = field(default=0.03, metadata={**scaled(1), **limits(gt=0)})
     sim: str = "dynamic"
     state_lag: bool = False
+    final_time: str = "elapsed"
     implementation: str = "ours"
     log: str = "none"
     shards: int = field(default=1, metadata=limits(ge=1))
@@ -151,6 +164,7 @@ class RunConfig:
             stop_radius=stop,
             kinematic=self.sim == "kinematic",
             state_lag=bool(self.state_lag),
+            final_time=str(self.final_time),
         )
 
     def scene(self) -> ScenarioConfig:
@@ -222,7 +236,14 @@ def validate(config: RunConfig) -> None:
             f"scenario.scale <= {config.success_radius / config.stop_radius:g} at this "
             "stop_radius (or a smaller stop_radius)"
         )
-    load_robot(config.robot)  # a description the loop cannot use is a configuration error
+    robot = load_robot(config.robot)  # a description the loop cannot use is a config error
+    radii, n_capsules = config.controller.proxy_arm_radii, len(robot.capsules)
+    if radii and (len(radii) != n_capsules or min(radii) <= 0.0):
+        raise ConfigError.invalid(
+            "controller.proxy_arm_radii",
+            radii,
+            f"[] or {n_capsules} radii > 0 [m], one per capsule",
+        )
     plan = config.plan
     if not (plan.dt > 0 and plan.duration > 0):
         raise ConfigError.invalid("plan.dt", plan.dt, "dt > 0 and duration > 0 [s]")

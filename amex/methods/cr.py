@@ -30,6 +30,9 @@ from amex.methods.base import Method, MethodConfig, Observation
 from amex.plan.knots import resample_knots, whole_knots
 from amex.plan.weights import CollisionWeights
 
+#: ``method.collision_cost``: the implementation's own, ours, the authors'.
+CR_COLLISION_COSTS = ("auto", "hinge", "proxy")
+
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
     from amex.plan.optimizer import KnotFrames
     from amex.plan.reference import ReferencePlan
@@ -59,6 +62,10 @@ class CRConfig(CollisionWeights, MethodConfig):
         min_steps: below this many remaining knots CR stops replanning (original 2).
         tail_horizon: receding horizon after T_ref [s], whose final knot is the target; 0
             holds the last final knot for ever (original).
+        collision_cost: the collision term's form: ``hinge``, ours, ``max(0, 1 - d / margin)^2``
+            per knot and pair; ``proxy``, the authors' ``(sum_p d1_p d2_p)^2`` per knot
+            (:mod:`amex.plan.optimizer.proxy`); ``auto``, the implementation's own (ours:
+            hinge; the authors' CR: proxy).
     """
 
     name: str = "cr"
@@ -77,6 +84,11 @@ class CRConfig(CollisionWeights, MethodConfig):
     realtime_iterations: int = 2  # [-]
     min_steps: int = 2  # [knots] original
     tail_horizon: float = 0.5  # [s]; 0: hold the final knot (original)
+    collision_cost: str = "auto"  # hinge (ours) or proxy (the original)
+
+    def collision_form(self, own: str) -> str:
+        """The collision term's form, ``own`` (the implementation's) for ``auto``."""
+        return own if self.collision_cost == "auto" else self.collision_cost
 
     def validate(self) -> None:
         """Raise :class:`ConfigError` for solver and horizon settings CR cannot run with."""
@@ -93,6 +105,10 @@ class CRConfig(CollisionWeights, MethodConfig):
             )
         if not (math.isfinite(self.tail_horizon) and self.tail_horizon >= 0.0):
             raise ConfigError.invalid("method.tail_horizon", self.tail_horizon, ">= 0 [s]")
+        if self.collision_cost not in CR_COLLISION_COSTS:
+            raise ConfigError.invalid(
+                "method.collision_cost", self.collision_cost, CR_COLLISION_COSTS
+            )
 
 
 class CRStatus(NamedTuple):
@@ -161,7 +177,8 @@ class CR(Method):
         super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
         c, robot, metric = self.config, self.robot, plan.metric
         Q = np.array(plan.q, dtype=float)
-        self.costs = TrajectoryCosts.from_weights(c, metric)
+        form = c.collision_form("hinge")
+        self.costs = TrajectoryCosts.from_weights(c, metric, collision_cost=form)
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.reference_q = Q

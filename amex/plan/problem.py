@@ -17,6 +17,8 @@ from amex.core.errors import ConfigError, SolverError
 from amex.plan.weights import CollisionWeights, CostWeights
 
 VELOCITY_SPACES = ("joint", "tcp")
+#: Forms of the collision term: ours per pair, the authors' per knot (:mod:`.optimizer.proxy`).
+COLLISION_COSTS = ("hinge", "proxy")
 
 
 @dataclass(frozen=True)
@@ -31,11 +33,15 @@ class TrajectoryCosts:
         final_velocity_space: the final velocity term on the joints (``joint``, ours:
             ``(q_T - q_{T-1}) / dt``) or on the TCP position (``tcp``, the original's:
             ``(p(q_T) - p(q_{T-1})) / dt``).
+        collision_cost: the collision term per knot, pair and obstacle, ``max(0, 1 - d / m)^2``
+            (``hinge``, ours), or per knot, the authors' ``(sum_p d1_p d2_p)^2`` (``proxy``,
+            :mod:`~amex.plan.optimizer.proxy`).
     """
 
     weights: CollisionWeights = field(default_factory=CollisionWeights)
     metric: tuple[float, ...] = ()
     final_velocity_space: str = "joint"
+    collision_cost: str = "hinge"
 
     @classmethod
     def from_weights(
@@ -43,6 +49,7 @@ class TrajectoryCosts:
         weights: CostWeights,
         metric: tuple[float, ...] = (),
         final_velocity_space: str = "joint",
+        collision_cost: str = "hinge",
     ) -> TrajectoryCosts:
         """The costs with the weights of ``weights``, e.g. a configuration that inherits them.
 
@@ -53,13 +60,15 @@ class TrajectoryCosts:
         values = {name: getattr(weights, name) for name in names}
         if not isinstance(weights, CollisionWeights):
             values["collision"] = 0.0
-        return cls(CollisionWeights(**values), metric, final_velocity_space)
+        return cls(CollisionWeights(**values), metric, final_velocity_space, collision_cost)
 
     def __post_init__(self) -> None:
         if self.final_velocity_space not in VELOCITY_SPACES:
             raise ConfigError.invalid(
                 "final_velocity_space", self.final_velocity_space, VELOCITY_SPACES
             )
+        if self.collision_cost not in COLLISION_COSTS:
+            raise ConfigError.invalid("collision_cost", self.collision_cost, COLLISION_COSTS)
         object.__setattr__(self, "metric", tuple(float(h) for h in self.metric))
         if not all(math.isfinite(h) and h > 0.0 for h in self.metric):
             raise ConfigError.invalid("costs.metric", self.metric, "finite weights > 0")

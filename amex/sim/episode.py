@@ -27,7 +27,7 @@ from amex.core.errors import AmexError, SimulationError, WriteError
 from amex.core.types import command_problem
 from amex.methods.base import Method, Observation
 from amex.robot import RobotModel
-from amex.sim.loop import LoopConfig, Recorder, StepRecord, Trace
+from amex.sim.loop import LoopConfig, Recorder, StepRecord, Trace, authors_samples
 from amex.sim.metrics import (
     SUCCESS_005_RADIUS,
     EpisodeResult,
@@ -90,6 +90,12 @@ class _Episode:
         cpu = trace.cpu_times
         period = 1.0 / loop.outer_hz
         goal_end = scenario.goal_at(t)
+        final_time = float(t)
+        if loop.final_time == "samples":  # the authors' count (amex.sim.loop.authors_samples)
+            samples = authors_samples(
+                k, k == self.n_steps, self.method.finished, loop.max_time, self.dt
+            )
+            final_time = samples * self.dt
         fidelity = math.nan
         if self.reference_path is not None and len(trace.tcp):
             fidelity = plan_fidelity(np.array(trace.tcp), self.reference_path, goal_end)
@@ -102,7 +108,7 @@ class _Episode:
             success_005=bool(distance <= SUCCESS_005_RADIUS) and not failure,
             collided=collided,
             final_distance=float(distance),
-            final_time=float(t),
+            final_time=final_time,
             sum_sq_acc=float(sum_sq_acc),
             compute_time_median=float(np.median(compute_times)) if compute_times else math.nan,
             compute_time_mean=float(np.mean(compute_times)) if compute_times else math.nan,

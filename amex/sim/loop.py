@@ -24,6 +24,31 @@ if TYPE_CHECKING:
     from amex.sim.metrics import EpisodeResult
 
 
+#: What an episode's ``final_time`` counts (:attr:`LoopConfig.final_time`).
+FINAL_TIMES = ("elapsed", "samples")
+
+
+def authors_samples(
+    k: int, time_limit: bool, ended_by_method: bool, max_time: float, dt: float
+) -> int:
+    """The joint samples the authors' harness wrote for an episode that ended at our step ``k``.
+
+    Their loop wrote the start and then one sample per inner step, and their evaluation
+    (``evalRun.m``) took ``samples x 1 ms`` as the final time. They checked the stop rule
+    before each inner step as we do, so an episode that reached its goal at our step k wrote
+    k + 1 samples; one that their CR ended (fewer than 2 knots left) ran one more inner step
+    after the end was set, k + 2; and one that ran out of time stopped once ``t``, summed step
+    by step in floating point (``t += dt``), reached ``max_time``: at 1 ms, 10001 steps for 10 s.
+    """
+    if time_limit:
+        t, steps = 0.0, 0
+        while t < max_time:
+            t += dt
+            steps += 1
+        return steps + 1
+    return k + 2 if ended_by_method else k + 1
+
+
 @dataclass(frozen=True)
 class LoopConfig:
     """Rates and stopping rules of the episode loop.
@@ -42,6 +67,9 @@ class LoopConfig:
         state_lag: methods see the task state (y, y_dot) of the previous inner step, and the
             stop rule its TCP, as in the authors' harness (module notes); joint states are
             current either way.
+        final_time: what ``final_time`` reports: ``elapsed``, the time of the last step (ours),
+            or ``samples``, the authors' count: the joint samples their harness wrote times
+            the inner period (:func:`authors_samples`).
     """
 
     outer_hz: float = 100.0
@@ -52,6 +80,7 @@ class LoopConfig:
     speed_limit_factor: float = 5.0
     kinematic: bool = False
     state_lag: bool = False
+    final_time: str = "elapsed"
 
     @property
     def substeps(self) -> int:
@@ -78,6 +107,8 @@ class LoopConfig:
             raise ConfigError.invalid("success_radius", self.success_radius, "a distance > 0 [m]")
         if not self.stop_radius > 0:
             raise ConfigError.invalid("stop_radius", self.stop_radius, "a distance > 0 [m]")
+        if self.final_time not in FINAL_TIMES:
+            raise ConfigError.invalid("final_time", self.final_time, FINAL_TIMES)
 
 
 @dataclass(frozen=True)

@@ -39,8 +39,10 @@
   follows the reference exactly on Task 0 (there ``g_T = R_N``).
 * ``failure``: empty, or why the episode ended early (``nan``, ``diverged``, ``solver: ...``).
 
-Aggregates over a run are mean and 2 x standard deviation (population std, as Fig. 5's
-"mean and two times the standard deviation").
+Aggregates over a run are mean and 2 x standard deviation, by default the population's
+(``ddof=0``, ours). The authors' Fig. 5 took MATLAB's ``std``, the sample standard deviation
+(``ddof=1``, divided by N - 1; ``matlab/evalScenario.m``): at N = 150 it is 0.33 % larger.
+``summarize(..., ddof=1)`` and ``mean_2std(..., ddof=1)`` give theirs.
 """
 
 from __future__ import annotations
@@ -120,23 +122,33 @@ AGGREGATED = (
 )
 
 
-def mean_2std(values: Sequence[float]) -> dict[str, float]:
-    """``{"mean": m, "two_std": 2 s}`` of ``values`` (population std); NaN for no values."""
+def mean_2std(values: Sequence[float], ddof: int = 0) -> dict[str, float]:
+    """``{"mean": m, "two_std": 2 s}`` of ``values``; NaN for no values.
+
+    Args:
+        values: the episodes' values.
+        ddof: the standard deviation's delta degrees of freedom: 0, the population's (ours), or
+            1, the sample's (MATLAB's ``std``, the authors'; NaN for a single value).
+    """
     a = np.asarray(values, dtype=float)
     if a.size == 0:
         return {"mean": math.nan, "two_std": math.nan}
-    return {"mean": float(a.mean()), "two_std": float(2.0 * a.std())}
+    two_std = float(2.0 * a.std(ddof=ddof)) if a.size > ddof else math.nan
+    return {"mean": float(a.mean()), "two_std": two_std}
 
 
-def summarize(results: Sequence[EpisodeResult]) -> dict[str, Any]:
-    """Aggregate a run: counts, failures, and mean / 2 std of every metric in :data:`AGGREGATED`."""
+def summarize(results: Sequence[EpisodeResult], ddof: int = 0) -> dict[str, Any]:
+    """Aggregate a run: counts, failures, and mean / 2 std of every metric in :data:`AGGREGATED`.
+
+    ``ddof``: as :func:`mean_2std` (0: ours; 1: the authors' MATLAB ``std``).
+    """
     rows = [r.as_row() for r in results]
     summary: dict[str, Any] = {
         "episodes": len(rows),
         "failures": sum(1 for r in rows if r["failure"]),
     }
     for key in AGGREGATED:
-        summary[key] = mean_2std([float(r[key]) for r in rows])
+        summary[key] = mean_2std([float(r[key]) for r in rows], ddof)
     return summary
 
 

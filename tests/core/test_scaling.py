@@ -21,7 +21,9 @@ def test_the_scene_dependent_fields_are_marked():
     assert _marked(METHODS["cr"].config_class) == {"final_axis": 2, "collision_margin": 1}
     assert _marked(METHODS["dmp"].config_class) == {"min_amplitude": 1}
     assert _marked(METHODS["dmp_ps"].config_class) == {"min_amplitude": 1, "beta_ps": -2}
-    assert _marked(ControllerConfig) == {"margin": 1}
+    assert _marked(ControllerConfig) == {
+        "margin": 1, "proxy_arm_radii": 1, "proxy_obstacle_radius": 1,
+    }  # fmt: skip
     assert set(_marked(ScenarioConfig)) == {
         "reference_offset", "box_size", "goal_speed_std", "plane_offset", "obstacle_radius",
         "obstacle_speed_std",

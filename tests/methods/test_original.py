@@ -2,16 +2,20 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from amex.app.compose import load_config
 from amex.experiment.runner import prepare, run_one
-from amex.methods import AMEXOriginal, CROriginal, DMPOriginal, get_method
+from amex.methods import CR, AMEXOriginal, CROriginal, DMPOriginal, get_method
 from amex.methods.base import Observation
+from amex.methods.cr import CRConfig
 from amex.methods.original.amex import PiecewiseLinearPlan
 from amex.plan.optimizer import TrajectoryProblem, solve_trajectory, solve_trajectory_newton
 from amex.plan.reference import ReferencePlan
+from amex.sim.loop import authors_samples
 from amex.sim.scenario import goal_grid, plan_goal, with_reference_goal
 
 T_REF, DT = 4.0, 0.01
@@ -138,6 +142,28 @@ def test_the_original_experiment_composes_the_authors_setup():
     np.testing.assert_allclose(box.min(axis=0), [0.4, -1.8, 0.8])
     np.testing.assert_allclose(box.max(axis=0), [1.1, -1.0, 2.6])
     assert config.loop.stop_radius == 0.03
+    assert config.loop.final_time == "samples"
+    controller = config.controller
+    assert (controller.collision_cost, controller.col.weight) == ("proxy", 1.0)
+    assert controller.proxy_arm_radii == [0.3] * 6 + [0.0002]
+    assert config.gains().proxy_obstacle_radius == 0.1
+
+
+def test_original_cr_plans_with_their_proxy_and_ours_with_the_hinge(original):
+    config, ctx = original
+    params = config.method_config()
+    assert CROriginal(ctx.plan, params, 0.01, ctx.robot).costs.collision_cost == "proxy"
+    assert CR(ctx.plan, params, 0.01, ctx.robot).costs.collision_cost == "hinge"
+    hinge = CRConfig(**{**vars(params), "collision_cost": "hinge"})
+    assert CROriginal(ctx.plan, hinge, 0.01, ctx.robot).costs.collision_cost == "hinge"
+    with pytest.raises(Exception, match="collision_cost"):
+        CROriginal(ctx.plan, CRConfig(collision_cost="cone"), 0.01, ctx.robot)
+
+
+def test_their_final_time_counts_the_samples_their_harness_wrote():
+    assert authors_samples(3630, False, False, 10.0, 1e-3) == 3631  # goal reached at 3.63 s
+    assert authors_samples(3990, False, True, 10.0, 1e-3) == 3992  # their CR's end: 3.992 s
+    assert authors_samples(10000, True, False, 10.0, 1e-3) == 10002  # t += dt reaches 10 late
 
 
 @pytest.mark.parametrize("method", ["amex", "dmp", "cr"])
@@ -146,3 +172,5 @@ def test_an_original_episode_reaches_a_task1_goal(method):
     result = run_one(config, prepare(config), 0)
     assert result.success and not result.failure, result
     assert result.sum_sq_acc_paper > result.sum_sq_acc  # rounding noise on top
+    elapsed = run_one(replace(config, final_time="elapsed"), prepare(config), 0).final_time
+    assert result.final_time == pytest.approx(elapsed + 1e-3, abs=1e-9)  # one sample more

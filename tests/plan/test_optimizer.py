@@ -20,6 +20,7 @@ from amex.plan.optimizer import (
     batch_kinematics,
     build_normal_equations,
     solve_trajectory,
+    solve_trajectory_newton,
     trajectory_residuals,
 )
 from amex.plan.weights import CollisionWeights
@@ -295,3 +296,77 @@ def test_replanning_around_new_obstacle_lowers_cost_and_penetration(robot):
     assert min_distance_along(robot, problem, replanned.q) > min_distance_along(
         robot, problem, q_init
     )
+
+
+# ------------------------------------------------------------------ the authors' proxy (CR's)
+def proxy_costs(**weights) -> TrajectoryCosts:
+    values = {t: 0.0 for t in TERMS} | {"collision": 1.0} | weights
+    return TrajectoryCosts(
+        CollisionWeights(**values, collision_margin=0.15), collision_cost="proxy"
+    )
+
+
+def proxy_kinks_are_clear(robot, problem, q) -> bool:
+    """No pair within 1e-4 m of the margin or of contact (the proxy's kinks), one in the margin."""
+    kin = batch_kinematics(robot)
+    d = kin.capsule_distances(kin.forward(q[1:]), problem.obstacles, problem.obstacle_radii)
+    margin = problem.costs.weights.collision_margin
+    kinks = np.abs(np.concatenate([d.distance.ravel(), d.distance.ravel() - margin]))
+    return bool(kinks.min() > 1e-4 and np.any((d.distance > 0) & (d.distance < margin)))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_proxy_gradient_and_gauss_newton_match_finite_differences(robot, seed):
+    problem, q = random_case(robot, seed, proxy_costs())
+    assert proxy_kinks_are_clear(robot, problem, q)
+    eq = build_normal_equations(robot, problem, q)
+    r = trajectory_residuals(robot, problem, q)
+    assert r.shape == (7 * 5 + 3 + 7 + 3 + 3 + 5,)  # one collision residual per knot
+    J = finite_difference(lambda x: trajectory_residuals(robot, problem, x), q)
+    assert eq.cost == pytest.approx(r @ r, rel=1e-12)
+    assert_close(eq.gradient, 2 * J.T @ r)
+    assert_close(band_to_dense(eq.hessian), 2 * J.T @ J)
+    cost = lambda x: build_normal_equations(robot, problem, x).cost  # noqa: E731
+    assert_close(eq.gradient, finite_difference(cost, q)[0])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_proxy_residual_is_the_authors_sum_per_knot(robot, seed):
+    problem, q = random_case(robot, seed, proxy_costs(collision=4.0))
+    r_col = trajectory_residuals(robot, problem, q)[-problem.steps :]
+    model = CollisionModel(robot, problem.obstacle_radii)
+    model.set_obstacles(problem.obstacles)
+    data = robot.model.createData()
+    margin = 0.15
+    for t, qt in enumerate(q[1:]):
+        pin.forwardKinematics(robot.model, data, qt)
+        total = 0.0
+        for prox in model.proximities(data, margin):  # coal, pair by pair
+            cap = robot.capsules[prox.shape]
+            center = data.oMi[cap.joint_id].act(cap.placement.translation)
+            c = np.linalg.norm(center - problem.obstacles[prox.obstacle])
+            reach = margin + 1.5 * (
+                cap.half_length + cap.radius + problem.obstacle_radii[prox.obstacle]
+            )
+            total += (1 - max(prox.distance, 0.0) / margin) * (1 - c / reach)
+        assert r_col[t] == pytest.approx(2.0 * total, rel=1e-9, abs=1e-12)  # sqrt(4) = 2
+
+
+def test_proxy_solves_with_both_solvers_and_keeps_the_trajectory_clear(robot):
+    obstacle = np.array([(START_TCP + GOAL_POS) / 2])
+    weights = CollisionWeights(collision_margin=0.02)
+    problem = reference_problem(
+        robot, steps=300, obstacles=obstacle, obstacle_radii=[0.02],
+        costs=TrajectoryCosts(weights, collision_cost="proxy"),
+    )  # fmt: skip
+    blind = dataclasses.replace(problem, costs=TrajectoryCosts(CollisionWeights(collision=0.0)))
+    d_blind = min_distance_along(robot, problem, solve_trajectory(robot, blind).q)
+    ours = solve_trajectory(robot, problem)
+    theirs = solve_trajectory_newton(robot, problem)
+    assert d_blind < min_distance_along(robot, problem, ours.q)
+    assert d_blind < min_distance_along(robot, problem, theirs.q)
+
+
+def test_an_unknown_collision_cost_is_a_config_error():
+    with pytest.raises(ConfigError, match="collision_cost"):
+        TrajectoryCosts(collision_cost="cone")

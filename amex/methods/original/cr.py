@@ -1,7 +1,9 @@
 """Continuous replanning as the authors' harness ran it (``mpc.cpp`` at commit b475fa1fe).
 
 ``implementation=original method=cr`` selects it (``experiment=original`` sets it). The
-original's costs (final TCP velocity, collision weight 1) solved by their Newton method
+original's costs (final TCP velocity; their collision proxy cost ``(sum_p d1_p d2_p)^2`` per knot
+at weight 1, :mod:`amex.plan.optimizer.proxy`, unless ``method.collision_cost=hinge``) solved by
+their Newton method
 (:func:`~amex.plan.optimizer.solve_trajectory_newton`); a horizon shrinking by one knot per
 outer step with the measured configurations of the two previous steps as its fixed prefix; the
 command ``q* = x_1``, ``q_dot* = (x_1 - x_0) / dt``; the episode ends once fewer than 2 knots
@@ -35,8 +37,9 @@ class CROriginal(Method):
         plan: the reference plan; its joint trajectory resampled at ``dt`` is the first warm
             start, its metric that of the acceleration term.
         config: :class:`~amex.methods.cr.CRConfig`; collision_margin (the proxy's margin [m]),
-            max_iterations (Newton steps per replan, original 20) and min_steps (the episode
-            ends below this many knots, original 2) apply.
+            collision_cost (``auto``: their proxy), max_iterations (Newton steps per replan,
+            original 20) and min_steps (the episode ends below this many knots, original 2)
+            apply.
         dt: the knot spacing and outer period [s] (the original's 0.01 s for both).
         robot: the arm; required.
     """
@@ -63,7 +66,9 @@ class CROriginal(Method):
             raise ConfigError.invalid("dt", dt, f"<= T_ref / 2 = {plan.duration / 2:g} [s]")
         Q = np.array(resample_knots(plan.q, 0.0, self.dt / plan.dt, steps + 1), dtype=float)
         weights = CollisionWeights(collision_margin=c.collision_margin)  # the original's weights
-        self.costs = TrajectoryCosts.from_weights(weights, metric, final_velocity_space="tcp")
+        self.costs = TrajectoryCosts.from_weights(
+            weights, metric, final_velocity_space="tcp", collision_cost=c.collision_form("proxy")
+        )
         self.robot = robot
         self.reference_q = Q
         self.max_iterations = int(c.max_iterations)

@@ -15,6 +15,7 @@ import pinocchio as pin
 
 from amex.plan.batch_kinematics import batch_kinematics
 from amex.plan.optimizer.band import acceleration_band, add_block, band_memory, lower_triangle
+from amex.plan.optimizer.proxy import proxy_jacobian
 from amex.plan.optimizer.residuals import (
     Point,
     acceleration_scale,
@@ -77,7 +78,7 @@ def linearize(robot: RobotModel, problem: TrajectoryProblem, point: Point) -> Ev
 
     The guard holds ``2 J^T J`` of each collision pair within ``(1 + GUARD)`` margins;
     :func:`~amex.plan.optimizer.levenberg.solve_trajectory` may add those of inactive pairs to
-    the matrix (never to the cost).
+    the matrix (never to the cost). The authors' proxy (``collision_cost=proxy``) has none.
     """
     T, n = point.x.shape
     c, dt = problem.costs, problem.dt
@@ -96,7 +97,22 @@ def linearize(robot: RobotModel, problem: TrajectoryProblem, point: Point) -> Ev
     add_block(hessian, 2.0 * (J_fin.T @ J_fin), n * T - m)
 
     guard = None
-    if point.near is not None and point.poses is not None and point.dist is not None:
+    if point.proxy is not None and point.poses is not None and point.dist is not None:
+        w = c.weights  # the authors' proxy: one residual per knot, no guard
+        rows, J_col = proxy_jacobian(
+            batch_kinematics(robot),
+            point.poses,
+            point.dist,
+            problem.obstacles,
+            point.proxy,
+            float(w.collision_margin),
+            w.collision,
+        )
+        grad[rows] += 2.0 * r_col[rows][:, None] * J_col
+        i, j = lower_triangle(n)
+        flat = ((rows[:, None] * n + j) * (2 * n + 1) + (i - j)).ravel()  # band_memory's
+        band_memory(hessian)[flat] += (2.0 * J_col[:, i] * J_col[:, j]).ravel()
+    elif point.near is not None and point.poses is not None and point.dist is not None:
         kin = batch_kinematics(robot)
         cap, obs, knot = near = point.near
         margin = c.weights.collision_margin

@@ -1,9 +1,10 @@
 """The trajectory cost ``f(x) = ||r(x)||^2`` at the free knots, and its residuals r.
 
 ``r`` stacks the acceleration residuals ``sqrt(w_acc dt) (q_{t+1} - 2 q_t + q_{t-1}) / dt^2``,
-the four final terms (:mod:`~amex.plan.optimizer.final_terms`) and the collision proxy
-``sqrt(w_col) max(0, 1 - d / margin)`` per knot, capsule and obstacle (the original's
-``kinematicsProxyCost``); docs/planner.md gives f(x) and its derivation.
+the four final terms (:mod:`~amex.plan.optimizer.final_terms`) and the collision term: ours,
+``sqrt(w_col) max(0, 1 - d / margin)`` per knot, capsule and obstacle, or the authors' proxy
+``sqrt(w_col) sum_p d1_p d2_p`` per knot (``collision_cost``; :mod:`~amex.plan.optimizer.proxy`);
+docs/planner.md gives f(x) and its derivation.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
 from amex.plan.kinematics_kernels import near_pairs
 from amex.plan.optimizer.final_terms import final_terms
+from amex.plan.optimizer.proxy import ProxyTerms, proxy_terms
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
 from amex.robot import RobotModel
 
@@ -79,12 +81,15 @@ class Point(NamedTuple):
 
     Attributes:
         x: free knots, shape (T, n) [rad].
-        residuals: acceleration (T, n), final (m,), collision (C, k, T) (zeros when inactive).
+        residuals: acceleration (T, n), final (m,), collision (C, k, T) (zeros when inactive;
+            ``proxy``: one per knot, (T,)).
         cost: f(x).
         final_jacobian: Jacobian of the final residuals, columns (q_{T-1}, q_T) or q_T alone.
         poses: batched joint frames (None without collision term).
         dist: capsule-obstacle distances (None without collision term).
-        near: pairs within ``1 + GUARD`` margins, (capsule, obstacle, knot) sorted by knot.
+        near: pairs within ``1 + GUARD`` margins, (capsule, obstacle, knot) sorted by knot
+            (``proxy``: within the margin).
+        proxy: the proxy's terms (``collision_cost=proxy`` with pairs in the margin, else None).
     """
 
     x: np.ndarray
@@ -94,6 +99,7 @@ class Point(NamedTuple):
     poses: BatchPoses | None
     dist: CapsuleDistances | None
     near: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+    proxy: ProxyTerms | None = None
 
 
 def acceleration_scale(costs: TrajectoryCosts, dt: float) -> float | np.ndarray:
@@ -136,22 +142,31 @@ def residuals(
     flat_acc = r_acc.ravel()
     cost = float(flat_acc @ flat_acc + r_fin @ r_fin)
 
-    r_col = np.zeros((len(robot.capsules), len(problem.obstacle_radii), T))
-    poses = dist = near = None
-    if r_col.size and c.weights.collision > 0.0:
+    proxy = c.collision_cost == "proxy"
+    r_col = np.zeros(T if proxy else (len(robot.capsules), len(problem.obstacle_radii), T))
+    poses = dist = near = terms = None
+    if len(problem.obstacle_radii) and robot.capsules and c.weights.collision > 0.0:
         kin, w = batch_kinematics(robot), c.weights
         poses = known.poses if known is not None else kin.forward(x)
         dist = known.distances(problem) if known is not None else None
         if dist is None:
             dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
-        # the pairs with 1 - d / margin > -GUARD, sorted by knot, and their residuals
-        cap, obs, knot, r_near = near_pairs(
-            dist.distance, float(w.collision_margin), GUARD, math.sqrt(w.collision), r_col
-        )
-        if knot.size:
-            near = (cap, obs, knot)
-            cost += float(r_near @ r_near)
-    return Point(x, [r_acc, r_fin, r_col], cost, J_fin, poses, dist, near)
+        if proxy:  # the authors' per knot (module notes)
+            margin, radii = float(w.collision_margin), problem.obstacle_radii
+            found = proxy_terms(
+                robot, kin, poses, dist, problem.obstacles, radii, margin, w.collision
+            )
+            if found.d1.size:
+                near, terms, r_col = found.pairs, found, found.residual
+                cost += float(r_col @ r_col)
+        else:  # the pairs with 1 - d / margin > -GUARD, sorted by knot, and their residuals
+            cap, obs, knot, r_near = near_pairs(
+                dist.distance, float(w.collision_margin), GUARD, math.sqrt(w.collision), r_col
+            )
+            if knot.size:
+                near = (cap, obs, knot)
+                cost += float(r_near @ r_near)
+    return Point(x, [r_acc, r_fin, r_col], cost, J_fin, poses, dist, near, terms)
 
 
 def free_knots(robot: RobotModel, problem: TrajectoryProblem, q: np.ndarray) -> np.ndarray:
@@ -174,7 +189,8 @@ def trajectory_residuals(
     """The stacked residual vector r with ``cost = r . r``, for inspection and tests (pure).
 
     Order: acceleration (T x n, knot-major), final position (3), final joint velocity (n), final
-    axis (3), final axis rate (3), collision (capsules x obstacles x T, zeros when inactive).
+    axis (3), final axis rate (3), collision (capsules x obstacles x T, zeros when inactive;
+    ``proxy``: T).
     """
     x = free_knots(robot, problem, q)
     point = residuals(robot, robot.model.createData(), problem, x)
