@@ -1,7 +1,7 @@
 """From tests to verdicts: holds, fails or inconclusive, under one multiple-testing policy.
 
 A claim (one of the paper's five, or "reproduces the paper" over the 12 cells) is a conjunction
-of tests, a :class:`Test` per task and method or method pair. Each test says which side its
+of tests, a :class:`Evidence` per task and method or method pair. Each test says which side its
 estimate lies on (supports the claim or contradicts it) and with what p-value. With m tests in
 the claim over all tasks:
 
@@ -25,7 +25,7 @@ from .inference import ALPHA
 HOLDS, FAILS, OPEN = "holds", "fails", "inconclusive"
 
 
-class Test(NamedTuple):
+class Evidence(NamedTuple):
     """One test of a claim: ``supports`` is the side of the estimate, ``p`` its test's p."""
 
     supports: bool
@@ -57,7 +57,7 @@ def fmt_p(p: float) -> str:
     return "p < 1e-4" if p < 1e-4 else f"p {p:.2g}"
 
 
-def _task(tests: Sequence[Test], fail_level: float) -> tuple[str, Test | None]:
+def _task(tests: Sequence[Evidence], fail_level: float) -> tuple[str, Evidence | None]:
     if not tests:
         return OPEN, None
     against = [t for t in tests if not t.supports and t.p < fail_level]
@@ -75,7 +75,7 @@ def _task_label(task: int) -> str:
 
 def decide(
     name: str,
-    tests: Mapping[int, Sequence[Test]],
+    tests: Mapping[int, Sequence[Evidence]],
     too_few: str = "",
     label: Callable[[int], str] = _task_label,
 ) -> Claim:
@@ -88,7 +88,7 @@ def decide(
         return Claim(name, Verdict("n/a", "no task has the methods it needs"), {})
     m = sum(len(t) for t in tests.values())
     per_task: dict[int, Verdict] = {}
-    decided: dict[int, tuple[str, Test | None]] = {}
+    decided: dict[int, tuple[str, Evidence | None]] = {}
     for task, task_tests in tests.items():
         word, test = _task(task_tests, ALPHA / m)
         if too_few:

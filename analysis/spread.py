@@ -4,7 +4,8 @@
   Wilson interval (:func:`analysis.inference.success_interval`), and the mean final time, its
   2 std and the mean sum of squared accelerations with cluster-bootstrap intervals (seeds as
   replicates; one seed: environments).
-* :func:`seed_spread`: for cells that pooled several seeds, per metric the pooled mean, the
+* :func:`seed_spread`: for cells that pooled several seeds, per metric the pooled mean (its
+  interval as in :func:`intervals`), the
   within-seed 2 std (root of the mean within-seed variance), the between-seed 2 std of the seed
   means beside what the within-seed spread alone predicts for them (within 2 std / sqrt(n per
   seed)), and the one-way ANOVA p of a seed effect. Seeds only pick environments, so the seed
@@ -92,7 +93,10 @@ def seed_spread(episodes: pd.DataFrame) -> pd.DataFrame:
             within = math.sqrt(
                 sum(x[seeds == s].var() * len(x[seeds == s]) for s in labels) / len(x)
             )
-            pooled = Interval(float(x.mean()), *percentile(x[resamples(seeds)].mean(axis=1)))
+            if column == "success":
+                pooled = success_interval(x > 0.5, seeds)
+            else:
+                pooled = Interval(float(x.mean()), *percentile(x[resamples(seeds)].mean(axis=1)))
             rows.append(
                 {
                     "task": task,

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from .claims import COMPUTE_FACTOR, MIN_EPISODES, PAPER_METHODS, SUCCESS_LEVEL, claim_names
-from .decide import Claim, Test, decide, fmt_p
+from .decide import Claim, Evidence, decide, fmt_p
 from .inference import ALPHA, Interval, Z, design_effect, newcombe, resamples, wilson_n
 
 PAPER_N = 150
@@ -76,16 +76,16 @@ def _z_test(
     return (z > 0) == supports_above, float(min(1.0, 2 * norm.sf(abs(z))))
 
 
-def _smoother(rows: dict[str, pd.Series], a: str, b: str) -> Test:
+def _smoother(rows: dict[str, pd.Series], a: str, b: str) -> Evidence:
     ra, rb = rows[a], rows[b]
     d = float(ra.sum_sq_acc_mean - rb.sum_sq_acc_mean)
     se = math.hypot(_se(ra.sum_sq_acc_2std), _se(rb.sum_sq_acc_2std))
     ok, p = _z_test(d, se, 0.0, False)
     text = f"{a.upper()} - {b.upper()} {Interval(d, d - Z * se, d + Z * se).text()}"
-    return Test(ok, p, f"{text}, {fmt_p(p)}")
+    return Evidence(ok, p, f"{text}, {fmt_p(p)}")
 
 
-def _ratio(rows: dict[str, pd.Series], a: str, b: str, threshold: float) -> Test:
+def _ratio(rows: dict[str, pd.Series], a: str, b: str, threshold: float) -> Evidence:
     ra, rb = rows[a], rows[b]
     r = float(ra.compute_time_mean / rb.compute_time_mean)
     s = math.hypot(
@@ -94,10 +94,10 @@ def _ratio(rows: dict[str, pd.Series], a: str, b: str, threshold: float) -> Test
     )
     ok, p = _z_test(math.log(r), s, math.log(threshold), True)
     interval = Interval(r, r * math.exp(-Z * s), r * math.exp(Z * s))
-    return Test(ok, p, f"{a.upper()}/{b.upper()} (mean) {interval.text()}, {fmt_p(p)}")
+    return Evidence(ok, p, f"{a.upper()}/{b.upper()} (mean) {interval.text()}, {fmt_p(p)}")
 
 
-def _spread(rows: dict[str, pd.Series]) -> list[Test]:
+def _spread(rows: dict[str, pd.Series]) -> list[Evidence]:
     from scipy.stats import f as fisher
 
     va, vc = (float(rows[m].final_time_2std / 2) ** 2 for m in ("amex", "cr"))
@@ -108,21 +108,23 @@ def _spread(rows: dict[str, pd.Series]) -> list[Test]:
     p = float(min(1.0, 2 * min(fisher.cdf(f_ratio, df, df), fisher.sf(f_ratio, df, df))))
     low = f_ratio / float(fisher.ppf(1 - ALPHA / 2, df, df))
     high = f_ratio / float(fisher.ppf(ALPHA / 2, df, df))
-    return [Test(f_ratio > 1, p, f"var AMEX/CR {Interval(f_ratio, low, high).text()}, {fmt_p(p)}")]
+    return [
+        Evidence(f_ratio > 1, p, f"var AMEX/CR {Interval(f_ratio, low, high).text()}, {fmt_p(p)}")
+    ]
 
 
-def _success(rows: dict[str, pd.Series]) -> list[Test]:
+def _success(rows: dict[str, pd.Series]) -> list[Evidence]:
     tests = []
     for m, r in rows.items():
         rate = float(r.success)
         ok, p = _z_test(rate, math.sqrt(0.09 / PAPER_N), SUCCESS_LEVEL, True)
-        tests.append(Test(ok, p, f"{m} {Interval(rate, *wilson_n(rate, PAPER_N)).text('.2f')}"))
+        tests.append(Evidence(ok, p, f"{m} {Interval(rate, *wilson_n(rate, PAPER_N)).text('.2f')}"))
     return tests
 
 
 def paper_claims(paper: pd.DataFrame, smoothness: str = "sum_sq_acc") -> list[Claim]:
     """The five claims on the paper's printed numbers (module notes); ``paper``: its Fig. 5."""
-    tests: list[dict[int, list[Test]]] = [{}, {}, {}, {}, {}]
+    tests: list[dict[int, list[Evidence]]] = [{}, {}, {}, {}, {}]
     for task in sorted(int(t) for t in paper.task.unique()):
         found = {m: _paper(paper, task, m) for m in PAPER_METHODS}
         rows = {m: r for m, r in found.items() if r is not None}
@@ -139,7 +141,7 @@ def paper_claims(paper: pd.DataFrame, smoothness: str = "sum_sq_acc") -> list[Cl
     return [decide(n, t) for n, t in zip(claim_names(smoothness), tests, strict=True)]
 
 
-def _equivalence(estimate: Interval, se: float, margin: float, center: float, fmt: str) -> Test:
+def _equivalence(estimate: Interval, se: float, margin: float, center: float, fmt: str) -> Evidence:
     """Equivalence of ``estimate`` to ``center`` within ``margin`` (normal, SE ``se``)."""
     from scipy.stats import norm
 
@@ -151,10 +153,10 @@ def _equivalence(estimate: Interval, se: float, margin: float, center: float, fm
     else:
         p = float(min(1.0, 2 * norm.sf((gap - margin) / se)))
     text = f"{estimate.text(fmt)}, SE {se:.2g}"
-    return Test(gap < margin, p, text)
+    return Evidence(gap < margin, p, text)
 
 
-def _cell_test(sub: pd.DataFrame, row: pd.Series, criterion: Margin) -> Test | None:
+def _cell_test(sub: pd.DataFrame, row: pd.Series, criterion: Margin) -> Evidence | None:
     values = sub[criterion.ours].to_numpy(dtype=float)
     seeds = sub.seed.to_numpy()
     if not len(values) or not np.isfinite(values).all():
@@ -186,7 +188,7 @@ def reproduction(episodes: pd.DataFrame, paper: pd.DataFrame) -> list[Claim]:
     """
     out = []
     for criterion in MARGINS:
-        tests: dict[int, list[Test]] = {}
+        tests: dict[int, list[Evidence]] = {}
         smallest = math.inf
         for task in sorted(int(t) for t in episodes.task.unique() if t >= 1):
             for i, method in enumerate(PAPER_METHODS):
