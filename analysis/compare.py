@@ -126,7 +126,7 @@ def by_benchmark(frames: dict[str, pd.DataFrame], title: str, col: str, fmt: str
 
 def judged(episodes: dict[str, pd.DataFrame]) -> dict[str, list[Claim]]:
     """The five claims on the paper and on every benchmark, as counted and exactly."""
-    columns = {"paper": paper_claims(paper_table())}
+    columns = {"paper": paper_claims(paper_table(), "sum_sq_acc_paper")}
     for label, df in episodes.items():
         columns[f"{label} (as the paper computed)"] = claims(df, "sum_sq_acc_paper", "success_005")
         columns[f"{label} (exact)"] = claims(df, "sum_sq_acc", "success")
