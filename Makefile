@@ -78,12 +78,16 @@ bench: $(STAMP)
 	$(BIN)/python -m analysis.bench_amex
 	$(BIN)/python -m analysis.bench_dmp
 
-## The paper's Fig. 5 from every episodes.csv under $(RUNS), into analysis/out/.
+## The paper's Fig. 5 from every episodes.csv under $(RUNS), into analysis/out/, with the claims as
+## test verdicts (docs/statistics.md); compute.md from reruns under runs/compute/ if any.
 table: $(STAMP)
 	$(BIN)/python -m analysis.table $(RUNS)
 	@if [ -d runs/paper_original ] && [ -d runs/paper ]; then \
 	  $(BIN)/python -m analysis.compare original=runs/paper_original ours=runs/paper; \
 	else echo "(make paper and make paper EXPERIMENT=original give the side-by-side analysis/out/compare.md)"; fi
+	@if [ -d runs/compute ] && [ -n "$$(ls runs/compute)" ]; then \
+	  $(BIN)/python -m analysis.compute runs/compute/*; \
+	else echo "(reruns of a cell set under runs/compute/<label>/ give analysis/out/compute.md)"; fi
 
 ## The ablation's steps side by side (analysis/out/ablation.md), after make ablation and make paper.
 ablation-table: $(STAMP)

@@ -5,7 +5,8 @@
 ablation's steps), one benchmark configuration per ``DIR``. Writes ``compare.md``: per task and
 method the success (at 0.03 m and 0.05 m), the final time and the sum of squared accelerations
 (exact and as the paper computed it) for the paper and every benchmark, the same with a row per
-benchmark, and the paper's claims checked on each, as the paper counted and exactly.
+benchmark, the paper's claims as test verdicts on each (as the paper counted and exactly, per
+task) and each benchmark against the paper (:mod:`analysis.vs_paper`); ``docs/statistics.md``.
 """
 
 from __future__ import annotations
@@ -20,9 +21,12 @@ from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
 
 from . import default_out
-from .comparisons import claims
+from .claims import claims
+from .decide import Claim
 from .episodes import TableError, load_runs
 from .table import aggregate, benchmarks, paper_table
+from .verdict_tables import POLICY, claims_table, reproduction_table
+from .vs_paper import paper_claims, reproduction
 
 DEFAULTS = (("original", Path("runs/paper_original")), ("ours", Path("runs/paper")))
 PAPER_METHODS = ("amex", "dmp", "cr")
@@ -48,13 +52,13 @@ def paper_aggregate() -> pd.DataFrame:
 
 
 def load(directory: Path) -> pd.DataFrame:
-    """The aggregates of the one benchmark configuration under ``directory``."""
+    """The episodes of the one benchmark configuration under ``directory``."""
     groups = benchmarks(load_runs(directory))
     if len(groups) != 1:
         raise TableError(
             f"{directory} holds {len(groups)} benchmark configurations; give one sweep's directory"
         )
-    return aggregate(groups[0].episodes)
+    return groups[0].episodes
 
 
 def _cell(df: pd.DataFrame, task: int, method: str, col: str, fmt: str) -> str:
@@ -120,34 +124,44 @@ def by_benchmark(frames: dict[str, pd.DataFrame], title: str, col: str, fmt: str
     return "\n".join(lines) + "\n"
 
 
-def verdicts(frames: dict[str, pd.DataFrame]) -> str:
-    """The paper's claims on every benchmark (and both smoothness computations) as Markdown."""
-    columns: dict[str, list[tuple[str, str, str]]] = {}
-    for label, df in frames.items():
-        if label == "paper":
-            columns["paper"] = claims(df, "sum_sq_acc_paper_mean")
-            continue
-        columns[f"{label} (as the paper computed)"] = claims(
-            df, "sum_sq_acc_paper_mean", success="success_005"
-        )
-        columns[f"{label} (exact)"] = claims(df, "sum_sq_acc_mean")
-    suffixes = (", as the paper computed it", " (as the paper computed it)")
-    names = [c[0] for c in columns["paper"]]
-    for suffix in suffixes:
+def judged(episodes: dict[str, pd.DataFrame]) -> dict[str, list[Claim]]:
+    """The five claims on the paper and on every benchmark, as counted and exactly."""
+    columns = {"paper": paper_claims(paper_table(), "sum_sq_acc_paper")}
+    for label, df in episodes.items():
+        columns[f"{label} (as the paper computed)"] = claims(df, "sum_sq_acc_paper", "success_005")
+        columns[f"{label} (exact)"] = claims(df, "sum_sq_acc", "success")
+    return columns
+
+
+def verdicts(columns: dict[str, list[Claim]]) -> str:
+    """The claims' overall verdicts, a column per benchmark and computation, as Markdown."""
+    names = [c.name for c in columns["paper"]]
+    for suffix in (", as the paper computed it", " (as the paper computed it)"):
         names = [n.replace(suffix, "") for n in names]
     head = ["claim", *columns]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for i, name in enumerate(names):
-        if "equal duration" in name:  # our diagnostic, not one of the paper's claims
-            continue
-        cells = [name] + [col[i][1].split(";")[0] for col in columns.values()]
+        cells = [name] + [col[i].overall.cell() for col in columns.values()]
         lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
-def report(frames: dict[str, pd.DataFrame], sources: dict[str, Path]) -> str:
-    """The whole ``compare.md``."""
+def per_task(columns: dict[str, list[Claim]]) -> list[str]:
+    """The claims' verdicts per task, a table per benchmark and computation."""
+    parts = []
+    for label, judged_ in columns.items():
+        parts += [f"\n### {label}\n", claims_table(judged_)]
+    return parts
+
+
+def report(
+    frames: dict[str, pd.DataFrame], episodes: dict[str, pd.DataFrame], sources: dict[str, Path]
+) -> str:
+    """The whole ``compare.md``: ``frames`` the aggregates (the paper's first), ``episodes``."""
     listed = ", ".join(f"{label} = `{path}`" for label, path in sources.items())
+    columns = judged(episodes)
+    paper = paper_table()
+    repro = {label: reproduction(df, paper) for label, df in episodes.items()}
     return "\n".join(
         [
             "# Fig. 5 side by side\n",
@@ -159,7 +173,17 @@ def report(frames: dict[str, pd.DataFrame], sources: dict[str, Path]) -> str:
             "\n## By benchmark\n",
             *(by_benchmark(frames, *m) for m in MEASURES),
             "## The paper's claims on each\n",
-            verdicts(frames),
+            verdicts(columns),
+            "\n" + POLICY + " The paper's own numbers: two-sample tests on its printed means "
+            "and std (unpaired: its environments are not published).\n",
+            "## The claims per task\n",
+            *per_task(columns),
+            "\n## Each benchmark against the paper (two-sample, the paper's n = 150)\n",
+            "Equivalence within each margin: holds when the 95 % interval of the difference "
+            "(or ratio) lies inside it, fails when it lies outside (Bonferroni over the 12 "
+            "cells); SE of the difference sqrt(SE_ours² + SE_paper²), the paper's SE its "
+            "std / √150, ours the bootstrap's.\n",
+            reproduction_table(repro),
             "",
         ]
     )
@@ -185,11 +209,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"invalid benchmark {e}: valid: LABEL=DIR, e.g. original=runs/paper_original")
     sources = dict(pairs)
     try:
-        frames = {"paper": paper_aggregate(), **{k: load(v) for k, v in sources.items()}}
+        episodes = {k: load(v) for k, v in sources.items()}
     except (TableError, StoreError) as e:
         print(f"analysis.compare: error: {e}", file=sys.stderr)
         return 2
-    text = report(frames, sources)
+    frames = {"paper": paper_aggregate(), **{k: aggregate(v) for k, v in episodes.items()}}
+    text = report(frames, episodes, sources)
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / args.name
     tmp = path.with_suffix(".tmp")

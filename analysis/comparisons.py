@@ -1,11 +1,11 @@
-"""Paired comparisons on identical environments, and the paper's claims checked.
+"""Paired comparisons on identical environments.
 
 :func:`paired`: every two methods that ran the same environments of a task (a before b in
-:data:`METHOD_ORDER`, then other methods by name); :func:`paired_stats`: any two sets of episodes
-(the studies' cells). Per metric the mean difference a - b, a bootstrap 95 % interval and the
-Wilcoxon signed-rank p-value. :func:`claims`: the paper's qualitative claims on the aggregates of
-:func:`analysis.table.aggregate`, each "holds", "fails", "n/a", or "too few" when judged on fewer
-than :data:`MIN_EPISODES` environments per method.
+:data:`METHOD_ORDER`, then other methods by name), an environment being ``(seed, env)``;
+:func:`paired_stats`: any two sets of episodes (the studies' cells). Per metric the mean
+difference a - b, a bootstrap 95 % interval (in :func:`paired`, seeds as replicates:
+:func:`analysis.inference.resamples`) and a paired test: Wilcoxon signed-rank for numbers, the
+exact McNemar test for success and collision indicators. The paper's claims: :mod:`analysis.claims`.
 """
 
 from __future__ import annotations
@@ -17,8 +17,8 @@ import numpy as np
 import pandas as pd
 
 METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
-MIN_EPISODES = 30  # fewer environments per method: a claim is "too few", not holds / fails
 PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_paper", "sum_sq_acc_t3")
+BOOLEAN_METRICS = ("success", "success_005", "collided")  # paired by McNemar's test
 #: The metrics :func:`paired_stats` compares by default (the studies' cells).
 STUDY_METRICS = ("final_time", "success", "sum_sq_acc", "final_distance")
 BOOTSTRAP = 10_000
@@ -41,22 +41,29 @@ def method_rank(name: str) -> tuple[int, str]:
 
 def paired(df: pd.DataFrame) -> pd.DataFrame:
     """Paired comparisons (a minus b) of every two methods on the environments both ran."""
-    from scipy.stats import wilcoxon
+    from .inference import mcnemar_p, mean_interval, resamples, wilcoxon
 
+    if "seed" not in df:
+        df = df.assign(seed=0)
     records = []
     for task in sorted(df.task.unique()):
         sub = df[df.task == task]
         methods = sorted(set(sub.method), key=method_rank)
         for i, a in enumerate(methods):
             for b in methods[i + 1 :]:
-                wide = sub[sub.method.isin([a, b])].pivot(index="env", columns="method")
+                both = sub[sub.method.isin([a, b])]
+                wide = both.pivot(index=["seed", "env"], columns="method")
                 for metric in (m for m in PAIRED_METRICS if m in sub):
-                    d = (wide[(metric, a)].astype(float) - wide[(metric, b)].astype(float))
-                    d = d.dropna().to_numpy()  # environments both ran, the metric recorded
-                    if len(d) < 2:
+                    pair = wide[[(metric, a), (metric, b)]].astype(float).dropna()
+                    if len(pair) < 2:  # environments both ran, the metric recorded
                         continue
-                    lo, hi = bootstrap_ci(d, seed=int(task))
-                    p = 1.0 if np.all(d == 0) else float(wilcoxon(d, zero_method="zsplit").pvalue)
+                    va, vb = pair[(metric, a)].to_numpy(), pair[(metric, b)].to_numpy()
+                    d = va - vb
+                    ci = mean_interval(d, resamples(pair.index.get_level_values("seed")))
+                    if metric in BOOLEAN_METRICS:
+                        test, p = "mcnemar", mcnemar_p(va > 0.5, vb > 0.5)
+                    else:
+                        test, p = "wilcoxon", wilcoxon(d)[0]
                     records.append(
                         {
                             "task": task,
@@ -64,10 +71,11 @@ def paired(df: pd.DataFrame) -> pd.DataFrame:
                             "b": b,
                             "metric": metric,
                             "pairs": len(d),
-                            "mean_diff": float(d.mean()),
-                            "ci_low": lo,
-                            "ci_high": hi,
-                            "wilcoxon_p": p,
+                            "mean_diff": ci.estimate,
+                            "ci_low": ci.low,
+                            "ci_high": ci.high,
+                            "test": test,
+                            "p": p,
                         }
                     )
     return pd.DataFrame.from_records(records)
@@ -107,85 +115,3 @@ def paired_stats(
             }
         )
     return pd.DataFrame.from_records(records)
-
-
-def claims(
-    ours: pd.DataFrame, smoothness: str = "sum_sq_acc_mean", success: str = "success"
-) -> list[tuple[str, str, str]]:
-    """The paper's qualitative claims checked on our aggregates: (claim, verdict, evidence).
-
-    ``smoothness`` is the column the two smoothness claims compare: ``sum_sq_acc_mean`` (exact)
-    or ``sum_sq_acc_paper_mean`` (as the authors computed it, rounding noise included);
-    ``success`` the success rate the first claim reads (``success_005``: at 0.05 m, as they
-    counted it).
-    """
-    out: list[tuple[str, str, str]] = []
-    paper_methods = ("amex", "dmp", "cr")
-    have = set(ours.method)
-    tasks = sorted(t for t in ours.task.unique() if t >= 1)
-
-    def get(task: int, method: str, col: str) -> float:
-        row = ours[(ours.task == task) & (ours.method == method)]
-        return float(row[col].iloc[0]) if len(row) else math.nan
-
-    def verdict(name: str, needed: tuple[str, ...], test, fmt) -> None:
-        if not set(needed) <= have or not tasks:
-            missing = ", ".join(sorted(set(needed) - have)) or "tasks 1-4"
-            out.append((name, "n/a", f"needs {missing}"))
-            return
-        results = {t: test(t) for t in tasks}
-        ok = all(results.values())
-        evidence = "; ".join(f"task {t}: {fmt(t)}" for t in tasks)
-        n = min(int(get(t, m, "episodes")) for t in tasks for m in needed)
-        word = "holds" if ok else "fails"
-        if n < MIN_EPISODES:
-            word = f"too few (n = {n} < {MIN_EPISODES}); {word} so far"
-        out.append((name, word, evidence))
-
-    present = tuple(m for m in paper_methods if m in have)
-    verdict(
-        "all methods above 0.9 success",
-        present or paper_methods,
-        lambda t: all(get(t, m, success) > 0.9 for m in present),
-        lambda t: ", ".join(f"{m} {get(t, m, success):.2f}" for m in present),
-    )
-    label = "as the paper computed it" if "paper" in smoothness else "exact"
-    for claim, col in (
-        (f"CR is the smoothest (lowest sum of squared accelerations, {label})", smoothness),
-        (
-            "CR is the smoothest at equal duration (median sum sq. acc. x final time^3; "
-            "diagnostic)",
-            "sum_sq_acc_t3_median",
-        ),
-    ):
-        verdict(
-            claim,
-            paper_methods,
-            lambda t, c=col: get(t, "cr", c) < min(get(t, "amex", c), get(t, "dmp", c)),
-            lambda t, c=col: ", ".join(f"{m} {get(t, m, c):.3g}" for m in paper_methods),
-        )
-    verdict(
-        f"AMEX is smoother than DMP ({label})",
-        ("amex", "dmp"),
-        lambda t: get(t, "amex", smoothness) < get(t, "dmp", smoothness),
-        lambda t: f"amex {get(t, 'amex', smoothness):.3g} vs dmp {get(t, 'dmp', smoothness):.3g}",
-    )
-    verdict(
-        "compute time CR >> AMEX > DMP (>> meaning 10x)",
-        paper_methods,
-        lambda t: (
-            get(t, "cr", "compute_time_mean") > 10 * get(t, "amex", "compute_time_mean")
-            and get(t, "amex", "compute_time_mean") > get(t, "dmp", "compute_time_mean")
-        ),
-        lambda t: ", ".join(f"{m} {get(t, m, 'compute_time_mean'):.2e}" for m in paper_methods),
-    )
-    verdict(
-        "AMEX's final time spreads more than CR's",
-        ("amex", "cr"),
-        lambda t: get(t, "amex", "final_time_2std") > get(t, "cr", "final_time_2std"),
-        lambda t: (
-            f"2 std amex {get(t, 'amex', 'final_time_2std'):.2f} s vs cr "
-            f"{get(t, 'cr', 'final_time_2std'):.2f} s"
-        ),
-    )
-    return out

@@ -25,6 +25,8 @@ FLOAT_COLUMNS = (
     "int_sq_acc",
     "compute_time_median",
     "compute_time_mean",
+    "compute_cpu_median",
+    "compute_cpu_mean",
 )
 
 
@@ -71,7 +73,14 @@ def read_episodes(files: Sequence[Path], empty: str = "") -> pd.DataFrame:
         if "scene_hash" not in rows[0]:
             raise TableError(f"{path}: written by an older amex without configuration hashes")
         # typed by the store's own parser, as the resume reads them (read_rows checked every row)
-        typed = [{**parse_result(r).as_row(), **{h: r[h] for h in HASH_COLUMNS}} for r in rows]
+        typed = [
+            {
+                **parse_result(r).as_row(),
+                **{h: r[h] for h in HASH_COLUMNS},
+                "code_hash": r.get("code_hash") or "",
+            }
+            for r in rows
+        ]
         frame = pd.DataFrame(typed)
         frame["file"] = str(path)
         frames.append(frame)

@@ -237,5 +237,3 @@ def comparisons(study: Study, episodes: pd.DataFrame) -> pd.DataFrame:
             kind = f"tuning lead {on.lead_time:g} s, accel {on.accel_std:g}"
             frames.append(d.assign(method=on.method, kind=kind))
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
-
-

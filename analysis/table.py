@@ -1,9 +1,12 @@
 """``make table``: the paper's Fig. 5 from our runs, the paper's numbers beside ours, paired stats.
 
 Reads every ``episodes.csv`` under a directory (default ``runs/``), groups the episodes by
-benchmark configuration (scene hash) and writes per group ``fig5.md``, ``fig5.csv``, ``fig5.tex``
-and ``paired.csv`` into ``analysis/out/`` (one group) or ``analysis/out/scene_<hash>/`` (several,
-listed in ``fig5.md``). What each output holds: ``docs/analysis.md``.
+benchmark configuration (scene hash; runs that differ only in ``seed`` pool into one,
+:mod:`analysis.pooling`) and writes per group ``fig5.md``, ``fig5.csv``, ``fig5.tex`` and
+``paired.csv`` into ``analysis/out/`` (one group) or ``analysis/out/scene_<id>/`` (several,
+listed in ``fig5.md``). ``fig5.md`` also holds the intervals, the seeds' spread, the paired
+comparisons and the paper's claims as test verdicts (``docs/statistics.md``). What each output
+holds: ``docs/analysis.md``.
 
 Usage: ``python -m analysis.table [RUNS_DIR] [--out DIR]``.
 """
@@ -23,10 +26,12 @@ from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
 
 from . import default_out
-from .comparisons import METHOD_ORDER, claims, method_rank, paired
+from .comparisons import METHOD_ORDER, method_rank, paired
 from .episodes import TableError, load_runs
 from .latex import fig5_latex
 from .markdown import markdown_table, paired_markdown
+from .pooling import benchmark_ids
+from .verdict_tables import verdict_sections
 
 #: Also importable from here, where they lived first (scripts and tests use them).
 __all__ = ["TableError", "aggregate", "benchmarks", "load_runs", "main", "paired", "write_outputs"]
@@ -37,16 +42,25 @@ PAPER_CSV = HERE / "paper_fig5.csv"
 
 @dataclass(frozen=True)
 class Benchmark:
-    """The episodes of one benchmark configuration (one scene hash)."""
+    """The episodes of one benchmark configuration: one scene hash, or several seeds pooled.
+
+    ``scene_hash`` names it: the scene hash, or ``seeds-<digest>`` for seeds pooled, whose
+    scene hashes are ``scene_hashes``.
+    """
 
     scene_hash: str
     episodes: pd.DataFrame
     files: tuple[str, ...]
     overrides: tuple[str, ...]  # command-line overrides shared by its runs (task, method aside)
+    seeds: tuple[int, ...] = (0,)
+    scene_hashes: tuple[str, ...] = ()
 
 
-def _overrides(files: list[str]) -> tuple[str, ...]:
-    """The Hydra overrides every run of ``files`` shares, but task, method, episodes and log."""
+def _overrides(files: list[str], pooled: bool = False) -> tuple[str, ...]:
+    """The Hydra overrides every run of ``files`` shares, but task, method, episodes and log.
+
+    ``pooled``: the runs are seeds pooled, so ``seed=`` is left out too.
+    """
     import yaml
 
     common: set[str] | None = None
@@ -57,22 +71,33 @@ def _overrides(files: list[str]) -> tuple[str, ...]:
         except (OSError, yaml.YAMLError):
             items = set()
         common = items if common is None else common & items
-    skip = ("task=", "method=", "episodes=", "log=", "hydra.", "+hydra.")
+    skip = ("task=", "method=", "episodes=", "log=", "hydra.", "+hydra.") + ("seed=",) * pooled
     return tuple(sorted(o for o in common or () if not o.startswith(skip)))
 
 
 def benchmarks(df: pd.DataFrame) -> list[Benchmark]:
-    """``df`` split by scene hash, largest first; method variants labelled ``method#hash``."""
+    """``df`` split into benchmarks (:mod:`analysis.pooling`), largest first.
+
+    Method variants (two configurations of one task and method) are labelled
+    ``method#<config hash>``, the config hash of the variant's lowest seed.
+    """
+    df = df.copy()
+    if "code_hash" not in df:
+        df["code_hash"] = ""
+    df["benchmark"] = benchmark_ids(df)
     groups = []
-    for scene, g in df.groupby("scene_hash", sort=False):
+    for name, g in df.groupby("benchmark", sort=False):
         g = g.copy()
-        variants = g.groupby(["task", "method"])["config_hash"].transform("nunique")
-        several = variants > 1
-        g.loc[several, "method"] = g.method[several] + "#" + g.config_hash[several].str[:6]
-        g = g.drop_duplicates(subset=["task", "method", "env"], keep="first")
+        several = g.groupby(["task", "method"])["variant"].transform("nunique") > 1
+        first = g.sort_values("seed", kind="stable").groupby("variant").config_hash.first()
+        g.loc[several, "method"] = g.method[several] + "#" + g.variant[several].map(first).str[:6]
+        g = g.drop_duplicates(subset=["task", "method", "seed", "env"], keep="first")
         files = sorted(set(g.file))
-        bench = Benchmark(str(scene), g.reset_index(drop=True), tuple(files), _overrides(files))
-        groups.append(bench)
+        seeds = tuple(sorted(int(s) for s in g.seed.unique()))
+        hashes = tuple(sorted(set(g.scene_hash)))
+        episodes = g.drop(columns=["benchmark", "scene_key", "variant"]).reset_index(drop=True)
+        overrides = _overrides(files, pooled=len(hashes) > 1)
+        groups.append(Benchmark(str(name), episodes, tuple(files), overrides, seeds, hashes))
     return sorted(groups, key=lambda b: (-len(b.episodes), b.scene_hash))
 
 
@@ -94,6 +119,7 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
                 "task": task,
                 "method": method,
                 "episodes": len(g),
+                "seeds": int(g.seed.nunique()) if "seed" in g else 1,
                 "success": g.success.mean(),
                 "success_005": g.success_005.mean(),
                 "collided": g.collided.mean(),
@@ -109,6 +135,9 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
                 "compute_time_mean": ct,
                 "compute_time_2std": ct2,
                 "compute_time_median": float(g.compute_time_median.median()),
+                "compute_cpu_median": float(g.compute_cpu_median.median())
+                if "compute_cpu_median" in g
+                else math.nan,
             }
         )
     out = pd.DataFrame.from_records(records)
@@ -138,6 +167,7 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
                 "task": r.task,
                 "method": r.method,
                 "n": r.episodes,
+                "seeds": r.seeds,
                 "success": f"{r.success:.2f}",
                 "success (paper)": "" if math.isnan(r.success_paper) else f"{r.success_paper:.2f}",
                 "success 0.05 m": f"{r.success_005:.2f}",
@@ -154,6 +184,9 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
                 "compute [s]": _pm(r.compute_time_mean, r.compute_time_2std, ".2e"),
                 "compute (paper)": _pm(r.compute_time_mean_paper, r.compute_time_2std_paper, ".2e"),
                 "compute median [s]": f"{r.compute_time_median:.2e}",
+                "compute CPU median [s]": ""
+                if math.isnan(r.compute_cpu_median)
+                else f"{r.compute_cpu_median:.2e}",
                 "sum sq. acc. x T^3 (median)": f"{r.sum_sq_acc_t3_median:.2e}",
             }
         )
@@ -161,16 +194,25 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
 
 
 def render_markdown(
-    table: pd.DataFrame, pairs: pd.DataFrame, verdicts, source: Path, bench: Benchmark | None = None
+    table: pd.DataFrame,
+    pairs: pd.DataFrame,
+    sections: list[str],
+    source: Path,
+    bench: Benchmark | None = None,
 ) -> str:
-    """The whole report of one benchmark configuration as Markdown."""
+    """The whole report of one benchmark configuration as Markdown.
+
+    ``sections``: what follows the paired comparisons
+    (:func:`analysis.verdict_tables.verdict_sections`).
+    """
     title = f"# Fig. 5, reproduced (from `{source}`)\n"
     if bench is not None:
         title += f"\nBenchmark configuration {_describe(bench)}.\n"
     parts = [
         title,
         "Mean ± 2 std over the environments of each run; the paper's numbers (Englert & "
-        "Toussaint 2014, Fig. 5) beside ours. Success at 0.03 m.\n",
+        "Toussaint 2014, Fig. 5) beside ours. Success at 0.03 m. `n`: environments, over "
+        "`seeds` seeds pooled.\n",
         markdown_table(table),
         "\n## Paired comparisons (a − b on identical environments)\n",
     ]
@@ -178,8 +220,7 @@ def render_markdown(
         parts.append(paired_markdown(pairs))
     else:
         parts.append("(no two methods ran the same environments of a task)")
-    parts.append("\n## The paper's claims in our numbers\n")
-    parts.append(markdown_table(pd.DataFrame(verdicts, columns=["claim", "verdict", "evidence"])))
+    parts += sections
     return "\n".join(parts) + "\n"
 
 
@@ -187,6 +228,9 @@ def _describe(bench: Benchmark) -> str:
     """``scene hash 1a2b...: robot=ur5 seed=3 (2 runs, tasks 1, 3; methods amex, dmp)``."""
     df = bench.episodes
     settings = " ".join(bench.overrides) or "the defaults"
+    if len(bench.scene_hashes) > 1:
+        seeds = ", ".join(str(s) for s in bench.seeds)
+        settings += f"; seeds {seeds} pooled (their {len(bench.scene_hashes)} scene hashes)"
     tasks = ", ".join(str(t) for t in sorted(df.task.unique()))
     methods = ", ".join(sorted(set(df.method), key=method_rank))
     return (
@@ -202,7 +246,9 @@ def report(bench: Benchmark, source: Path) -> dict[str, str]:
     paper = paper_table()
     pairs = paired(bench.episodes)
     return {
-        "fig5.md": render_markdown(combined(ours, paper), pairs, claims(ours), source, bench),
+        "fig5.md": render_markdown(
+            combined(ours, paper), pairs, verdict_sections(bench.episodes, paper), source, bench
+        ),
         "fig5.tex": fig5_latex(ours, paper),
         "fig5.csv": ours.to_csv(index=False),
         "paired.csv": pairs.to_csv(index=False),
@@ -212,10 +258,10 @@ def report(bench: Benchmark, source: Path) -> dict[str, str]:
 def _index(groups: list[Benchmark], source: Path) -> str:
     lines = [
         f"# Fig. 5 from `{source}`: {len(groups)} benchmark configurations\n",
-        "Runs of different benchmark configurations (scene hashes: robot, scene scale, seed, "
+        "Runs of different benchmark configurations (scene hashes: robot, scene scale, "
         "plan, controller, ...) ran different environments, so each has its own table, in "
-        "`scene_<hash>/` beside this file; `make table RUNS=<dir>` on one sweep's directory "
-        "makes just its table.\n",
+        "`scene_<id>/` beside this file (runs that differ only in `seed` are one, pooled); "
+        "`make table RUNS=<dir>` on one sweep's directory makes just its table.\n",
     ]
     for bench in groups:
         lines.append(f"* `scene_{bench.scene_hash}/fig5.md`: {_describe(bench)}")

@@ -465,6 +465,15 @@ TABLES: tuple[Table, ...] = (
             "ours=docs/data/runs/paper",
         ),
     ),
+    Table("docs/generated/seeds/fig5.md", ("analysis.table", "docs/data/runs/seeds")),
+    Table(
+        "docs/generated/compute/compute.md",
+        (
+            "analysis.compute",
+            "alone=docs/data/runs/compute/alone",
+            "loaded=docs/data/runs/compute/loaded",
+        ),
+    ),
 )
 
 

@@ -27,17 +27,18 @@ def test_table_reports_ours_beside_the_paper_with_paired_stats(runs, tmp_path, c
     md = (tmp_path / "fig5.md").read_text()
     assert "| 1 | amex | 3 |" in md and "4.17 ± 0.77" in md  # the paper's Task 1 AMEX row
     assert "## Paired comparisons" in md and "amex | dmp | final_time" in md
+    assert "| 1 | amex | dmp | success | 3 | 0 | [0, 0] | mcnemar | 1 |" in md
     assert "AMEX is smoother than DMP" in md
     for name in ("fig5.tex", "fig5.csv", "paired.csv"):
         assert (tmp_path / name).stat().st_size > 0
 
 
-def test_claims_judged_on_fewer_than_30_environments_are_marked_too_few(runs, tmp_path):
+def test_claims_judged_on_fewer_than_30_environments_are_inconclusive(runs, tmp_path):
     assert main([str(runs), "--out", str(tmp_path)]) == 0
     md = (tmp_path / "fig5.md").read_text()
-    claims = md.split("## The paper's claims")[1]
-    assert "| AMEX is smoother than DMP (exact) | too few (n = 3 < 30);" in claims
-    assert "| holds |" not in claims and "| fails |" not in claims
+    claims = md.split("## The paper's claims")[1].split("\n## ")[0]
+    assert "| AMEX is smoother than DMP (exact) | inconclusive (n = 3 < 30) |" in claims
+    assert "| holds" not in claims and "| fails" not in claims
 
 
 def test_latex_is_two_booktabs_tables_for_a_column(runs, tmp_path):
@@ -188,7 +189,8 @@ def test_compare_sets_benchmarks_beside_the_paper_and_checks_the_claims_on_each(
     assert "| paper | 1.00 | 1.00 | 1.00 | 0.99 |" in md  # the paper's success by task and method
     claims = md.split("## The paper's claims on each")[1]
     assert "| claim | paper | a (as the paper computed) | a (exact) | b (as" in claims
-    assert "| AMEX is smoother than DMP | holds |" in claims  # on the paper's own numbers
+    assert "| AMEX is smoother than DMP | holds (weakest T3: AMEX - DMP" in claims  # the paper's
+    assert "| T2 dmp | " in md.split("against the paper")[1]  # every cell against the paper
 
 
 def test_compare_refuses_a_bad_benchmark_argument(tmp_path, capsys):
@@ -200,3 +202,57 @@ def test_compare_refuses_a_bad_benchmark_argument(tmp_path, capsys):
     assert "LABEL=DIR" in capsys.readouterr().err
     assert compare([f"x={tmp_path / 'missing'}", "--out", str(tmp_path)]) == 2
     assert not (tmp_path / "compare.md").exists()
+
+
+def test_a_seed_sweep_pools_into_one_benchmark_paired_on_seed_and_env(tmp_path):
+    import subprocess
+    import sys
+
+    amex_run = str(Path(sys.executable).parent / "amex-run")
+    sweep = tmp_path / "sweep"
+    cell = ["task=1", "method=amex,dmp", "episodes=3", "max_time=2"]
+    for extra in (["seed=0,1"], ["seed=2", "max_time=3"]):  # the last differs in max_time too
+        proc = subprocess.run(
+            [amex_run, "-m", *cell, *extra, f"hydra.sweep.dir={sweep}"],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "out"
+    assert main([str(sweep), "--out", str(out)]) == 0
+    index = (out / "fig5.md").read_text()
+    assert "2 benchmark configurations" in index and "seeds 0, 1 pooled" in index
+    pooled = next(p for p in out.glob("scene_seeds-*/fig5.md")).read_text()
+    assert "| 1 | amex | 6 | 2 |" in pooled and "| 1 | dmp | 6 | 2 |" in pooled
+    assert "| 1 | amex | dmp | final_time | 6 |" in pooled  # (seed, env) pairs
+    assert "## Seeds: pooled, within and between" in pooled and "6 (3+3)" in pooled
+    alone = [p.read_text() for p in out.glob("scene_*/fig5.md") if "seeds-" not in str(p)]
+    assert len(alone) == 1 and "| 1 | amex | 3 | 1 |" in alone[0]
+
+
+def test_seeds_pool_only_with_equal_code_and_configuration():
+    import pandas as pd
+
+    from analysis.pooling import _Unit
+
+    def unit(seed, key="k", code="c"):
+        return _Unit(
+            pd.DataFrame(
+                {
+                    "seed": [seed],
+                    "scene_key": [key],
+                    "task": [1],
+                    "variant": ["v"],
+                    "code_hash": [code],
+                }
+            )
+        )
+
+    assert unit(0).joins(unit(1))
+    assert not unit(0).joins(unit(0))  # one seed twice: another run of it, not a replicate
+    assert not unit(0).joins(unit(1, key="other"))  # another configuration
+    assert not unit(0).joins(unit(1, code="d"))  # other code
+    assert not unit(0, code="").joins(unit(1, code=""))  # rows without a code hash
+    assert not unit(0, key=None).joins(unit(1, key=None))  # no recorded configuration

@@ -28,6 +28,8 @@ def test_the_pages_include_generated_tables():
     assert {path for _, path, _, _ in _includes()} >= {
         "docs/generated/paper/fig5.md",
         "docs/generated/original/compare.md",
+        "docs/generated/seeds/fig5.md",  # a seed sweep, pooled
+        "docs/generated/compute/compute.md",  # the compute claim on two reruns
     }
 
 
