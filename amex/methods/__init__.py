@@ -29,10 +29,13 @@ from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.original.amex import AMEXOriginal
 from amex.methods.original.cr import CROriginal
 from amex.methods.original.dmp import DMPOriginal
+from amex.methods.rmpflow import RMPflow, RMPflowConfig
 from amex.methods.track import Track, TrackConfig
 from amex.plan.reference import ReferencePlan
 
-METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}
+METHODS: dict[str, type[Method]] = {
+    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow)
+}
 BUILTIN_METHODS = frozenset(METHODS)
 IMPLEMENTATIONS = ("ours", "original")
 #: The authors' implementations of the paper's methods (``implementation=original``), by name.
@@ -122,6 +125,8 @@ __all__ = [
     "Method",
     "MethodConfig",
     "Observation",
+    "RMPflow",
+    "RMPflowConfig",
     "ReferencePlan",
     "Track",
     "TrackConfig",
