@@ -22,7 +22,9 @@ from importlib.metadata import entry_points
 
 from amex.core.errors import ConfigError
 from amex.methods.amex import AMEX, AMEXConfig
+from amex.methods.amex_cbf import AMEXCBF, AMEXCBFConfig
 from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.cbf_ik import CBFIK, CBFIKConfig
 from amex.methods.cr import CR, CRConfig
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
@@ -34,7 +36,7 @@ from amex.methods.track import Track, TrackConfig
 from amex.plan.reference import ReferencePlan
 
 METHODS: dict[str, type[Method]] = {
-    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow)
+    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow, CBFIK, AMEXCBF)
 }
 BUILTIN_METHODS = frozenset(METHODS)
 IMPLEMENTATIONS = ("ours", "original")
@@ -114,7 +116,11 @@ __all__ = [
     "ORIGINAL_METHODS",
     "BUILTIN_METHODS",
     "ENTRY_POINT_GROUP",
+    "AMEXCBF",
+    "AMEXCBFConfig",
     "AMEXConfig",
+    "CBFIK",
+    "CBFIKConfig",
     "CR",
     "CRConfig",
     "DMP",

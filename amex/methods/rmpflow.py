@@ -70,7 +70,7 @@ class RMPflowConfig(MethodConfig):
         obstacle_damping_length: length scale of the braking [m].
         obstacle_damping_eps: regularizer of the braking's divisor [-].
         obstacle_velocity_gate: approach speed scale of the gate [m/s].
-        obstacle_radius: distance at which an obstacle leaf vanishes (pairs beyond are left out) [m].
+        obstacle_radius: distance at which an obstacle leaf vanishes (farther pairs left out) [m].
         obstacle_metric: metric scale of the obstacle leaves [1/m^2 x scale^2].
         obstacle_metric_length: length scale of the obstacle metric [m].
         obstacle_metric_eps: regularizer of the obstacle metric's divisor [-].

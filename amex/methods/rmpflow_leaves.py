@@ -65,7 +65,7 @@ def goal_attractor(
 
 def axis_attractor(error: np.ndarray, zd: np.ndarray, gain: float, damping: float,
                    metric: float) -> RMP:  # fmt: skip
-    """TCP axis attractor, ``error = z_goal - z``: ``a = gain error - damping z_dot``, ``M = w I``."""
+    """TCP axis attractor, ``error = z_goal - z``: ``a = gain error - damping z_dot``, M = w I."""
     return RMP(metric * np.eye(3), gain * error - damping * zd)
 
 
