@@ -27,6 +27,7 @@ from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.cbf_ik import CBFIK, CBFIKConfig
 from amex.methods.cr import CR, CRConfig
 from amex.methods.dmp import DMP, DMPConfig
+from amex.methods.dmp_avoid import DMPAvoid, DMPAvoidConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.original.amex import AMEXOriginal
 from amex.methods.original.cr import CROriginal
@@ -36,7 +37,7 @@ from amex.methods.track import Track, TrackConfig
 from amex.plan.reference import ReferencePlan
 
 METHODS: dict[str, type[Method]] = {
-    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow, CBFIK, AMEXCBF)
+    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow, CBFIK, AMEXCBF, DMPAvoid)
 }
 BUILTIN_METHODS = frozenset(METHODS)
 IMPLEMENTATIONS = ("ours", "original")
@@ -125,6 +126,8 @@ __all__ = [
     "CRConfig",
     "DMP",
     "METHODS",
+    "DMPAvoid",
+    "DMPAvoidConfig",
     "DMPConfig",
     "DMPPSConfig",
     "DMPPhaseStop",
