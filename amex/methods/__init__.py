@@ -22,17 +22,23 @@ from importlib.metadata import entry_points
 
 from amex.core.errors import ConfigError
 from amex.methods.amex import AMEX, AMEXConfig
+from amex.methods.amex_cbf import AMEXCBF, AMEXCBFConfig
 from amex.methods.base import Method, MethodConfig, Observation
+from amex.methods.cbf_ik import CBFIK, CBFIKConfig
 from amex.methods.cr import CR, CRConfig
 from amex.methods.dmp import DMP, DMPConfig
+from amex.methods.dmp_avoid import DMPAvoid, DMPAvoidConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
 from amex.methods.original.amex import AMEXOriginal
 from amex.methods.original.cr import CROriginal
 from amex.methods.original.dmp import DMPOriginal
+from amex.methods.rmpflow import RMPflow, RMPflowConfig
 from amex.methods.track import Track, TrackConfig
 from amex.plan.reference import ReferencePlan
 
-METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}
+METHODS: dict[str, type[Method]] = {
+    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow, CBFIK, AMEXCBF, DMPAvoid)
+}
 BUILTIN_METHODS = frozenset(METHODS)
 IMPLEMENTATIONS = ("ours", "original")
 #: The authors' implementations of the paper's methods (``implementation=original``), by name.
@@ -111,17 +117,25 @@ __all__ = [
     "ORIGINAL_METHODS",
     "BUILTIN_METHODS",
     "ENTRY_POINT_GROUP",
+    "AMEXCBF",
+    "AMEXCBFConfig",
     "AMEXConfig",
+    "CBFIK",
+    "CBFIKConfig",
     "CR",
     "CRConfig",
     "DMP",
     "METHODS",
+    "DMPAvoid",
+    "DMPAvoidConfig",
     "DMPConfig",
     "DMPPSConfig",
     "DMPPhaseStop",
     "Method",
     "MethodConfig",
     "Observation",
+    "RMPflow",
+    "RMPflowConfig",
     "ReferencePlan",
     "Track",
     "TrackConfig",

@@ -1,0 +1,183 @@
+"""What the reactive methods measure of the arm at one outer step: TCP kinematics and clearance.
+
+RMPflow's leaves (:mod:`amex.methods.rmpflow`) and the barrier filter
+(:mod:`amex.methods.barrier`) need, at the measured ``(q, q_dot)``, the TCP's position, axis and
+Jacobians (a :class:`~amex.control.state.RobotState`) and, for every arm-capsule/obstacle pair
+closer than an activation distance, the signed distance ``d`` (coal, through
+:class:`~amex.control.collision.CollisionModel`), its gradient and how obstacle motion changes it:
+
+* gradient: ``dd/dq = n^T J_p`` with ``n`` the unit normal from the obstacle to the arm and
+  ``J_p = J_v - [r]x J_w`` the linear Jacobian of the arm's witness point, ``r`` its offset from
+  the joint origin (LOCAL_WORLD_ALIGNED joint Jacobian ``(J_v; J_w)``); the same for any point on
+  the normal line, so the surface witness point serves;
+* rate: ``dd/dt`` at ``q_dot = 0`` from the obstacle's velocity ``v_o``, ``-n^T v_o``, where
+  ``v_o`` is the finite difference of the perceived centres between two outer steps (0 at the
+  first step and for static obstacles);
+* drift (on request): ``d_ddot`` at ``q_ddot = 0``, ``n^T a_p + (|v_rel|^2 - (n^T v_rel)^2) / rho``
+  with ``a_p`` the witness point's classical acceleration, ``v_rel = v_p - v_o`` and
+  ``rho = d + r_o`` its distance to the obstacle's centre: the curvature of the point-to-centre
+  distance, the witness point taken as fixed on its link (its sliding along the capsule is
+  neglected; exact for the sphere caps).
+
+Distances, normals and witness points come from one ``pin.computeDistances`` call over every
+pair (:meth:`~amex.control.collision.CollisionModel.proximities`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+import pinocchio as pin
+
+from amex.control.collision import CollisionModel
+from amex.control.state import RobotState
+from amex.core.types import require_finite
+from amex.robot import RobotModel
+from amex.robot.geometry import cross, skew
+
+_LWA = pin.LOCAL_WORLD_ALIGNED
+
+
+class PairTerms(NamedTuple):
+    """The arm-obstacle pairs within the activation distance, one row each.
+
+    Attributes:
+        distance: signed distances d, shape (k,) [m].
+        gradient: ``dd/dq``, shape (k, n) [m/rad].
+        rate: ``dd/dt`` from obstacle motion alone, shape (k,) [m/s].
+        drift: ``d_ddot`` at ``q_ddot = 0`` (zeros unless asked for), shape (k,) [m/s^2].
+        obstacle: the obstacle of each pair, shape (k,).
+    """
+
+    distance: np.ndarray
+    gradient: np.ndarray
+    rate: np.ndarray
+    drift: np.ndarray
+    obstacle: np.ndarray
+
+
+class ArmSnapshot(NamedTuple):
+    """The arm at one outer step.
+
+    Attributes:
+        state: kinematics at the measured ``(q, q_dot)`` (TCP pose, Jacobian, drift).
+        pairs: the arm-obstacle pairs within the activation distance.
+    """
+
+    state: RobotState
+    pairs: PairTerms
+
+
+def no_pairs(n: int) -> PairTerms:
+    """An empty :class:`PairTerms` for an ``n``-joint arm."""
+    empty = np.zeros(0)
+    return PairTerms(empty, np.zeros((0, n)), empty, empty, np.zeros(0, dtype=int))
+
+
+class ArmSensor:
+    """Measures :class:`ArmSnapshot` s of one arm, step after step (module notes).
+
+    Args:
+        robot: the arm.
+    """
+
+    def __init__(self, robot: RobotModel) -> None:
+        self.robot = robot
+        self.data = robot.model.createData()
+        self._collision: CollisionModel | None = None
+        self._radii: tuple[float, ...] = ()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous step (the obstacles' velocities start at 0)."""
+        self._t_prev = math.nan
+        self._centers_prev: np.ndarray | None = None
+
+    def collision_model(self, radii: np.ndarray) -> CollisionModel | None:
+        """The distance model for obstacles of ``radii`` (built again when they change)."""
+        key = tuple(float(r) for r in radii)
+        if not key:
+            return None
+        if self._collision is None or key != self._radii:
+            self._collision, self._radii = CollisionModel(self.robot, key), key
+            self.reset()
+        return self._collision
+
+    def obstacle_velocities(self, t: float, centers: np.ndarray) -> np.ndarray:
+        """Finite-difference velocities of the obstacle centres, shape (k, 3) [m/s]."""
+        prev, dt = self._centers_prev, t - self._t_prev
+        if prev is None or prev.shape != centers.shape or not dt > 0.0:
+            velocity = np.zeros_like(centers)
+        else:
+            velocity = (centers - prev) / dt
+        self._centers_prev, self._t_prev = centers.copy(), t
+        return velocity
+
+    def measure(
+        self,
+        t: float,
+        q: np.ndarray,
+        qd: np.ndarray,
+        centers: np.ndarray,
+        radii: np.ndarray,
+        activation: float,
+        drift: bool = False,
+    ) -> ArmSnapshot:
+        """The arm at ``(q, q_dot)`` among spheres ``centers`` (k, 3) [m] of ``radii`` (k,) [m].
+
+        Args:
+            t: time of the measurement [s] (for the obstacles' velocities).
+            q: joint positions, shape (n,) [rad].
+            qd: joint velocities, shape (n,) [rad/s].
+            centers: obstacle centres, shape (k, 3) [m].
+            radii: obstacle radii, shape (k,) [m].
+            activation: pairs at or beyond this distance are left out [m].
+            drift: also compute each pair's ``d_ddot`` at ``q_ddot = 0``.
+
+        Raises:
+            InputError: a NaN or an infinity in the inputs (nothing is changed).
+        """
+        require_finite(q=q, qd=qd, obstacles=centers, obstacle_radii=radii)
+        robot = self.robot
+        state = RobotState(robot, self.data, q, qd)
+        collision = self.collision_model(radii)
+        if collision is None:
+            return ArmSnapshot(state, no_pairs(robot.nv))
+        centers = np.asarray(centers, dtype=float).reshape(-1, 3)
+        velocity = self.obstacle_velocities(t, centers)
+        collision.set_obstacles(centers)
+        found = collision.proximities(self.data, activation)
+        k, n = len(found), robot.nv
+        if not k:
+            return ArmSnapshot(state, no_pairs(n))
+        distance, rate, accel = np.empty(k), np.empty(k), np.zeros(k)
+        gradient = np.empty((k, n))
+        obstacle = np.empty(k, dtype=int)
+        model, data = robot.model, self.data
+        for i, prox in enumerate(found):
+            J = pin.getJointJacobian(model, data, prox.joint_id, _LWA)
+            r = prox.point - data.oMi[prox.joint_id].translation
+            J_point = J[:3] - skew(r) @ J[3:]
+            gradient[i] = prox.normal @ J_point
+            v_obstacle = velocity[prox.obstacle]
+            distance[i] = prox.distance
+            rate[i] = -float(prox.normal @ v_obstacle)
+            obstacle[i] = prox.obstacle
+            if drift:
+                accel[i] = self._drift(prox, r, v_obstacle, radii[prox.obstacle])
+        return ArmSnapshot(state, PairTerms(distance, gradient, rate, accel, obstacle))
+
+    def _drift(self, prox, r: np.ndarray, v_obstacle: np.ndarray, radius: float) -> float:
+        """``d_ddot`` at ``q_ddot = 0`` of one pair (module notes)."""
+        model, data = self.robot.model, self.data
+        v = pin.getVelocity(model, data, prox.joint_id, _LWA)
+        a = pin.getClassicalAcceleration(model, data, prox.joint_id, _LWA)
+        w, alpha = v.angular, a.angular
+        v_point = v.linear + cross(w, r)
+        a_point = a.linear + cross(alpha, r) + cross(w, cross(w, r))
+        v_rel = v_point - v_obstacle
+        along = float(prox.normal @ v_rel)
+        rho = max(prox.distance + float(radius), 1e-9)
+        return float(prox.normal @ a_point) + (float(v_rel @ v_rel) - along * along) / rho
