@@ -26,13 +26,16 @@ from amex.methods.base import Method, MethodConfig, Observation
 from amex.methods.cr import CR, CRConfig
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
+from amex.methods.mppi import MPPI, MPPIConfig
 from amex.methods.original.amex import AMEXOriginal
 from amex.methods.original.cr import CROriginal
 from amex.methods.original.dmp import DMPOriginal
 from amex.methods.track import Track, TrackConfig
 from amex.plan.reference import ReferencePlan
 
-METHODS: dict[str, type[Method]] = {cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track)}
+METHODS: dict[str, type[Method]] = {
+    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, MPPI, Track)
+}
 BUILTIN_METHODS = frozenset(METHODS)
 IMPLEMENTATIONS = ("ours", "original")
 #: The authors' implementations of the paper's methods (``implementation=original``), by name.
@@ -116,6 +119,8 @@ __all__ = [
     "CRConfig",
     "DMP",
     "METHODS",
+    "MPPI",
+    "MPPIConfig",
     "DMPConfig",
     "DMPPSConfig",
     "DMPPhaseStop",
