@@ -31,6 +31,7 @@ from __future__ import annotations
 import gc
 import hashlib
 import math
+import struct
 import time
 from collections import deque
 from collections.abc import Callable
@@ -138,7 +139,8 @@ class MPPIConfig(MethodConfig):
             raise invalid("command", self.command, list(COMMANDS))
         if not (self.inner_hz > 0.0 and self.tracking_kp + self.tracking_kd > 0.0):
             values = [self.tracking_kp, self.tracking_kd, self.inner_hz]
-            raise invalid("tracking_kp, tracking_kd, inner_hz", values, "gains >= 0, not both 0; rate > 0")
+            valid = "gains >= 0, not both 0, a rate > 0"
+            raise invalid("tracking_kp, tracking_kd, inner_hz", values, valid)
 
 
 class MPPIStatus(NamedTuple):
@@ -193,10 +195,10 @@ def shift_controls(controls: np.ndarray, shift: float) -> np.ndarray:
 
 def observation_words(obs: Observation) -> list[int]:
     """The 128-bit blake2b digest of every number of ``obs``, as four 32-bit words."""
-    parts = [obs.q, obs.qd, obs.y, obs.yd, obs.goal, obs.obstacles, obs.obstacle_radii]
-    data = np.concatenate([[obs.t], *(np.ravel(p) for p in parts)]).astype(float).tobytes()
-    digest = hashlib.blake2b(data, digest_size=16).digest()
-    return np.frombuffer(digest, dtype=np.uint32).tolist()
+    h = hashlib.blake2b(struct.pack("<d", obs.t), digest_size=16)
+    for part in (obs.q, obs.qd, obs.y, obs.yd, obs.goal, obs.obstacles, obs.obstacle_radii):
+        h.update(np.ascontiguousarray(part, dtype="<f8").data)
+    return list(struct.unpack("<4I", h.digest()))
 
 
 def softmax_weights(costs: np.ndarray, temperature: float) -> np.ndarray:
@@ -275,11 +277,12 @@ class MPPI(Method):
             c.velocity, c.acceleration, c.collision, c.collision_margin, c.joint_limits,
             c.limit_margin,
         )  # fmt: skip
-        self.rollouts = Rollouts(rollout_model(robot, self.kinematics, metric), weights)
         self.B = interpolation_matrix(int(c.knots), int(c.control_every))
+        self.rollouts = Rollouts(rollout_model(robot, self.kinematics, metric), weights, self.B)
         self.clock = CLOCKS[c.budget_clock]
         substeps = max(int(round(c.inner_hz * self.dt)), 1)
-        self.pd_map = pd_period(float(c.tracking_kp), float(c.tracking_kd), 1.0 / c.inner_hz, substeps)
+        kp, kd = float(c.tracking_kp), float(c.tracking_kd)
+        self.pd_map = pd_period(kp, kd, 1.0 / c.inner_hz, substeps)
         self.reference_acc = np.gradient(np.gradient(plan.q, plan.dt, axis=0), plan.dt, axis=0)
         self.reference_dt = float(plan.dt)
         self.seed(int(c.seed))
@@ -382,10 +385,9 @@ class MPPI(Method):
             block[:, 1:] = rng.standard_normal((size, m - 1, n)) * c.noise
             if evaluated == 0:
                 block[0] = 0.0  # sample 0: the warm start itself
-            acc = np.matmul(self.B, self.controls + block)  # (size, H, n)
             terms = self.rollouts.costs(
-                obs.q, obs.qd, acc, c.knot_dt, goal_pos, goal_axis, obs.obstacles,
-                obs.obstacle_radii,
+                obs.q, obs.qd, self.controls, block, c.knot_dt, goal_pos, goal_axis,
+                obs.obstacles, obs.obstacle_radii,
             )  # fmt: skip
             costs[evaluated : evaluated + size] = terms.sum(axis=1)
             evaluated += size
