@@ -29,6 +29,7 @@ from amex.methods.cr import CR, CRConfig
 from amex.methods.dmp import DMP, DMPConfig
 from amex.methods.dmp_avoid import DMPAvoid, DMPAvoidConfig
 from amex.methods.dmp_ps import DMPPhaseStop, DMPPSConfig
+from amex.methods.mppi import MPPI, MPPIConfig
 from amex.methods.original.amex import AMEXOriginal
 from amex.methods.original.cr import CROriginal
 from amex.methods.original.dmp import DMPOriginal
@@ -37,7 +38,8 @@ from amex.methods.track import Track, TrackConfig
 from amex.plan.reference import ReferencePlan
 
 METHODS: dict[str, type[Method]] = {
-    cls.name: cls for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow, CBFIK, AMEXCBF, DMPAvoid)
+    cls.name: cls
+    for cls in (AMEX, CR, DMP, DMPPhaseStop, Track, RMPflow, CBFIK, AMEXCBF, DMPAvoid, MPPI)
 }
 BUILTIN_METHODS = frozenset(METHODS)
 IMPLEMENTATIONS = ("ours", "original")
@@ -128,6 +130,8 @@ __all__ = [
     "METHODS",
     "DMPAvoid",
     "DMPAvoidConfig",
+    "MPPI",
+    "MPPIConfig",
     "DMPConfig",
     "DMPPSConfig",
     "DMPPhaseStop",

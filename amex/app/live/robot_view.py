@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from amex.log.urdf import resolve_mesh
+from amex.robot.meshes import resolve_mesh
 from amex.robot import RobotModel
 
 
