@@ -8,9 +8,10 @@ their material colour and added to the link's body as MuJoCo meshes (the Panda: 
 joint rings); URDF boxes, cylinders and spheres become MuJoCo's own. The collision shapes stay in
 the model for the kinematics but in geom group 3, which MuJoCo does not draw by default;
 ``geometry="collision"`` draws them instead (translucent capsules, the old look). Mesh references
-are resolved like :func:`amex.robot.meshes.resolve_mesh`; a visual whose mesh is missing or unreadable
-is left out, and a robot with no visual left is drawn with its collision shapes. Spheres and paths
-are added to the scene per frame (:class:`SceneDrawer`), so nothing but the arm lives in the model.
+are resolved like :func:`amex.robot.meshes.resolve_mesh`; a visual whose mesh is missing or
+unreadable is left out, and a robot with no visual left is drawn with its collision shapes.
+Spheres and paths are added to the scene per frame (:class:`SceneDrawer`), so nothing but the arm
+lives in the model.
 
 Framing: :func:`frame_points` gives the points the camera must see, the arm's bodies at the
 configurations shown included, for :func:`aim_camera`; :func:`split_viewport` and

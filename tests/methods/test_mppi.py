@@ -166,7 +166,7 @@ def test_sampling_lowers_the_cost_of_the_warm_start(robot, context):
     obs = observe(robot, 0.0, robot.q0)
     method.reset(obs)
     costs = []
-    for k in range(15):
+    for _k in range(15):
         method.step(dataclasses.replace(obs, t=0.0))  # the same state: an optimization
         costs.append(method.status.warm_cost)
         method.t_controls = 0.0

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from amex.robot.meshes import resolve_mesh
 from amex.robot import RobotModel
+from amex.robot.meshes import resolve_mesh
 
 
 def load_urdf(robot: RobotModel, visual: bool = True) -> Any:
