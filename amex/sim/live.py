@@ -222,7 +222,9 @@ class TimedMethod(Method):
         self.last_goal: np.ndarray | None = None  # the goal of the last step (a DMP's rollout)
 
     @classmethod
-    def from_plan(cls, plan: Any, config: Any, dt: float, robot: Any = None) -> Method:
+    def from_plan(
+        cls, plan: Any, config: Any = None, dt: float = 0.01, robot: Any = None
+    ) -> Method:
         """Not a method of its own: wrap one."""
         raise TypeError("TimedMethod wraps a method; build the method, then wrap it")
 
@@ -299,7 +301,7 @@ def _dmp_rollout(twin: DMP, goal: np.ndarray, horizon: float = 3.0) -> np.ndarra
     for k in range(int(horizon / twin.dt)):
         target = twin.update(goal, twin.dt)
         if k % 4 == 3:
-            out.append(target.y[:3].copy())
+            out.append(target.y_star[:3].copy())
     return np.array(out)
 
 
