@@ -43,10 +43,10 @@ from amex.log.render import (
     joint_addresses,
     split_viewport,
 )
+from amex.log.scene import SUCCESS_RADIUS
 from amex.sim.scenario import Scenario
 
 PHASE_NAMES = {"s": "phase s", "phase": "phase x", "index": "index"}  # as the layout's plot
-SUCCESS_RADIUS = 0.03  # [m] the goal sphere drawn (the paper's success radius)
 MAX_PANELS = 3
 FRAME_MARGIN = 1.05  # the bounding sphere of the arm and the scene, plus the links' own size
 BAND = 30  # [px] height of the caption band above the scene and the outcome band below it
@@ -268,71 +268,25 @@ def render_video(
         LogError: a log cannot be read or filmed; RenderError: no headless OpenGL;
         LogExistsError: ``output`` exists; WriteError: the film could not be written.
     """
-    import imageio_ffmpeg
-    import mujoco
-
     if output.exists() or output.is_symlink():
         raise LogExistsError(f"output file {output} already exists; not overwriting it")
-
     if not 1 <= len(logs) <= MAX_PANELS:
         raise LogError(f"give 1 to {MAX_PANELS} logs to film side by side, not {len(logs)}")
     if not (fps > 0 and speed > 0 and width >= 64 and height >= 64):
         raise LogError("need fps > 0, speed > 0 and a size of at least 64 x 64 pixels")
     tracks = [track_of(read_log(p)) for p in logs]
     end = max(track.end for track in tracks)
+    frames = int(np.floor(end / speed * fps + 1e-9)) + 1
+    hold = int(round(fps))  # a second on the last frame, outcome shown
+    times = [min(k / fps * speed, end) if k < frames else end + 1.0 for k in range(frames + hold)]
     gl = gl_context(width, height)
     contexts: list[Any] = []
     try:
-        panels = [_Panel(track, width, height, geometry) for track in tracks]
-        look = np.concatenate([panel.look_points() for panel in panels])
-        motion = tracks[0].scenario.goal_start - tracks[0].tcp[0]
-        for panel in panels:
-            aim_camera(panel.camera, look, motion, margin=FRAME_MARGIN)
-        font = (
-            mujoco.mjtFontScale.mjFONTSCALE_150
-            if width >= 480
-            else mujoco.mjtFontScale.mjFONTSCALE_100
-        )
-        for panel in panels:
-            contexts.append(mujoco.MjrContext(panel.model, font))
-        viewport = mujoco.MjrRect(0, 0, width, height)
-        frames = int(np.floor(end / speed * fps + 1e-9)) + 1
-        hold = int(round(fps))  # a second on the last frame, outcome shown
+        panels = _aimed_panels(tracks, width, height, geometry)
+        contexts.extend(_render_contexts(panels, width))
         output.parent.mkdir(parents=True, exist_ok=True)
         tmp = output.with_name(output.name + ".part.mp4")
-        writer = imageio_ffmpeg.write_frames(
-            str(tmp),
-            (width * len(panels), height),
-            fps=fps,
-            codec="libx264",
-            pix_fmt_out="yuv420p",
-            macro_block_size=1,
-            ffmpeg_log_level="error",
-            output_params=["-crf", "23", "-preset", "veryfast"],
-        )
-        writer.send(None)
-        rgb = np.empty((height, width, 3), dtype=np.uint8)
-        written = False
-        try:
-            for k in range(frames + hold):
-                t = min(k / fps * speed, end) if k < frames else end + 1.0
-                row = []
-                for panel, context in zip(panels, contexts, strict=True):
-                    mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
-                    panel.draw(context, t, viewport)
-                    mujoco.mjr_readPixels(rgb, None, viewport, context)
-                    row.append(np.flipud(rgb).copy())
-                writer.send(np.ascontiguousarray(np.hstack(row)))
-            writer.close()
-            written = True
-        except OSError as e:  # ffmpeg's pipe or file: a full disk, a removed directory
-            raise WriteError(output, e.strerror or str(e)) from e
-        finally:
-            if not written:
-                with contextlib.suppress(Exception):
-                    writer.close()
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
+        _encode(tmp, output, panels, contexts, times, fps, width, height)
         try:
             publish_new(tmp, output)
         except FileExistsError:
@@ -344,6 +298,73 @@ def render_video(
         gl.free()
     environments = {track.environment for track in tracks}
     return VideoInfo(
-        output, frames + hold, (frames + hold) / fps, width * len(tracks), height,
-        len(environments) > 1,
-    )  # fmt: skip
+        output, len(times), len(times) / fps, width * len(tracks), height, len(environments) > 1
+    )
+
+
+def _aimed_panels(tracks: list[Any], width: int, height: int, geometry: str) -> list[_Panel]:
+    """One panel per track, every camera aimed at what all of them show (one framing)."""
+    panels = [_Panel(track, width, height, geometry) for track in tracks]
+    look = np.concatenate([panel.look_points() for panel in panels])
+    motion = tracks[0].scenario.goal_start - tracks[0].tcp[0]
+    for panel in panels:
+        aim_camera(panel.camera, look, motion, margin=FRAME_MARGIN)
+    return panels
+
+
+def _render_contexts(panels: list[_Panel], width: int) -> list[Any]:
+    """A MuJoCo render context per panel (the smaller font for small panels)."""
+    import mujoco
+
+    scale = mujoco.mjtFontScale
+    font = scale.mjFONTSCALE_150 if width >= 480 else scale.mjFONTSCALE_100
+    return [mujoco.MjrContext(panel.model, font) for panel in panels]
+
+
+def _encode(
+    tmp: Path,
+    output: Path,
+    panels: list[_Panel],
+    contexts: list[Any],
+    times: list[float],
+    fps: float,
+    width: int,
+    height: int,
+) -> None:
+    """The frames at ``times`` encoded into ``tmp`` (H.264); ``tmp`` is removed if that fails."""
+    import imageio_ffmpeg
+    import mujoco
+
+    viewport = mujoco.MjrRect(0, 0, width, height)
+    writer = imageio_ffmpeg.write_frames(
+        str(tmp),
+        (width * len(panels), height),
+        fps=fps,
+        codec="libx264",
+        pix_fmt_out="yuv420p",
+        macro_block_size=1,
+        ffmpeg_log_level="error",
+        output_params=["-crf", "23", "-preset", "veryfast"],
+    )
+    writer.send(None)
+    rgb = np.empty((height, width, 3), dtype=np.uint8)
+    written = False
+    try:
+        for t in times:
+            row = []
+            for panel, context in zip(panels, contexts, strict=True):
+                mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
+                panel.draw(context, t, viewport)
+                mujoco.mjr_readPixels(rgb, None, viewport, context)
+                row.append(np.flipud(rgb).copy())
+            writer.send(np.ascontiguousarray(np.hstack(row)))
+        writer.close()
+        written = True
+    except OSError as e:  # ffmpeg's pipe or file: a full disk, a removed directory
+        raise WriteError(output, e.strerror or str(e)) from e
+    finally:
+        if not written:
+            with contextlib.suppress(Exception):
+                writer.close()
+            with contextlib.suppress(OSError):
+                tmp.unlink()

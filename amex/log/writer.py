@@ -27,9 +27,8 @@ topic                schema                    content
 ``/episode``         JSON                      the episode's result (once, at the end)
 ==================== ========================= ==================================================
 
-Scene colours are the palette's (:mod:`amex.core.palette`): the goal gold, the obstacles black,
-the reference red, the executed path in the method's colour (the ``method`` of the metadata) and
-its plan lighter.
+The scene topics are :class:`amex.log.scene.SceneChannels`' (its colours are the palette's: the
+executed path in the method's colour, the ``method`` of the metadata).
 
 Every JSON schema declares all the fields its messages carry, in the form browser viewers accept
 (:func:`amex.log.messages.viewer_schema_problems`: no arrays of arrays, every array has ``items``).
@@ -55,7 +54,6 @@ previous handler and re-delivers the signal to it.
 from __future__ import annotations
 
 import json
-import logging
 import math
 import os
 import signal
@@ -66,14 +64,16 @@ from typing import TYPE_CHECKING, Any
 
 import foxglove
 import numpy as np
-from foxglove.channels import FrameTransformsChannel, JointStatesChannel, SceneUpdateChannel
+from foxglove.channels import FrameTransformsChannel, JointStatesChannel
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
+from foxglove.messages import JointState, JointStates
 
 from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
 from amex.log import messages as M
+from amex.log.files import WriteFailures, failure_cause, set_aside
 from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
+from amex.log.scene import SceneChannels
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
@@ -86,65 +86,6 @@ CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can 
 PART_SUFFIX = ".part"
 COMPRESSION = MCAPCompression.Zstd
 COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % more time
-SUCCESS_RADIUS = 0.03  # [m] drawn around the goal (the paper's success radius)
-
-log = logging.getLogger(__name__)
-
-
-def set_aside(path: Path) -> Path:
-    """Rename an existing ``path`` to the first free ``<stem>.old<n><suffixes>``; say so.
-
-    A log is never overwritten: a rerun or a resumed run (whose interrupted episode left a
-    ``.part`` file) keeps the earlier file next to the new one, with a warning.
-    """
-    name = path.name
-    stem, dot, rest = name.partition(".")
-    for n in range(1, 10_000):
-        target = path.with_name(f"{stem}.old{n}{dot}{rest}")
-        if not target.exists():
-            os.rename(path, target)
-            log.warning("log %s already existed; kept it as %s", path, target.name)
-            return target
-    raise LogExistsError(f"log file {path} exists and no free name is left to keep it")
-
-
-class _WriteFailures(logging.Filter):
-    """Watches foxglove-sdk's log records for a failed write (e.g. a full disk).
-
-    The SDK's writer does not raise when a write fails: it logs a warning per message from then
-    on. Attached to its loggers while a log is open, this keeps the first failure's cause and
-    swallows the rest, so that :class:`EpisodeLogger` can stop with one error instead.
-    """
-
-    LOGGERS = ("foxglove.log_sink_set", "foxglove_py.mcap")
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.cause = ""
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        text = record.getMessage()
-        if "McapError" not in text and "MCAP" not in text:
-            return True
-        if not self.cause:
-            self.cause = _cause(text)
-        return False
-
-    def attach(self) -> None:
-        for name in self.LOGGERS:
-            logging.getLogger(name).addFilter(self)
-
-    def detach(self) -> None:
-        for name in self.LOGGERS:
-            logging.getLogger(name).removeFilter(self)
-
-
-def _cause(text: str) -> str:
-    """The OS's words in a foxglove-sdk error (``No space left on device``), else the text."""
-    for marker in ('message: "', "message: '"):
-        if marker in text:
-            return text.split(marker, 1)[1].split(marker[-1], 1)[0]
-    return " ".join(text.split())[:200]
 
 
 class EpisodeLogger:
@@ -185,30 +126,20 @@ class EpisodeLogger:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise LogError(f"cannot create the log directory {self.path.parent}: {e}") from e
-        self._scenario = scenario
         self._links = LinkTransforms(robot)
         self._joint_names = list(robot.joint_names)
         self._path_every = max(1, int(path_every))
-        self._max_line_points = max(2, int(max_line_points))
-        self._reference = M.points(np.asarray(plan.y)[:, :3], len(plan.y))
-        self._path_points: list[Point3] = []
-        method = str(metadata.get("method", ""))
-        self._path_color, self._plan_color = M.path_color(method), M.plan_color(method)
         self._steps = 0
         self._t = 0.0
-        self._next_reference = 0.0
         self._outcome_written = False
         self._closed = True
-        self._world_key: list[float] | None = None
-        self._obstacles_move = bool(np.any(scenario.obstacle_velocity))
-        self._world_time = 0.0
         self._last_tcp: tuple[float, float, float] | None = None
         self._tcp_json = M.json_template(
             [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
         )
         self._goal_json = M.json_template([("t", 0), ("position", 3), ("distance", 0)])
 
-        self._failures = _WriteFailures()
+        self._failures = WriteFailures()
         self._failures.attach()
         self._context = foxglove.Context()
         options = MCAPWriteOptions(
@@ -229,10 +160,14 @@ class EpisodeLogger:
         ctx = self._context
         self._tf = FrameTransformsChannel("/tf", context=ctx)
         self._joint_states = JointStatesChannel("/joint_states", context=ctx)
-        self._scene_world = SceneUpdateChannel("/scene/world", context=ctx)
-        self._scene_path = SceneUpdateChannel("/scene/path", context=ctx)
-        self._scene_plan = SceneUpdateChannel("/scene/plan", context=ctx)
-        self._scene_reference = SceneUpdateChannel("/scene/reference", context=ctx)
+        self._scene = SceneChannels(
+            ctx,
+            M.points(np.asarray(plan.y)[:, :3], len(plan.y)),
+            scenario.obstacle_radii,
+            obstacles_move=bool(np.any(scenario.obstacle_velocity)),
+            method=str(metadata.get("method", "")),
+            max_line_points=max(2, int(max_line_points)),
+        )
         self._json = {
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
             for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
@@ -289,7 +224,7 @@ class EpisodeLogger:
             try:
                 self._writer.close()
             except Exception as e:  # the SDK's error for a write that failed at the end
-                self._failures.cause = self._failures.cause or _cause(str(e))
+                self._failures.cause = self._failures.cause or failure_cause(str(e))
         finally:
             self._failures.detach()
         if self._failures.cause:  # a cut log keeps its .part name: it is no finished episode
@@ -304,10 +239,7 @@ class EpisodeLogger:
         return [
             self._tf,
             self._joint_states,
-            self._scene_world,
-            self._scene_path,
-            self._scene_plan,
-            self._scene_reference,
+            *self._scene.channels(),
             *self._json.values(),
         ]
 
@@ -380,52 +312,8 @@ class EpisodeLogger:
             },
         )
         self._json["/reference"].base.log(M.reference_json(plan.y, plan.dt, plan.duration), 0)
-        self._publish_world(0.0, scenario.goal_at(0.0), scenario.obstacles_at(0.0))
-        self._publish_reference(0.0)
-
-    def _publish_world(self, t: float, goal: np.ndarray, obstacles: np.ndarray) -> None:
-        """Goal and obstacles: when they moved (> 1 mm) or a second passed since last time."""
-        gx, gy, gz = goal[:3].tolist()
-        key = [gx, gy, gz]
-        if self._obstacles_move:
-            key += np.asarray(obstacles, dtype=float).ravel().tolist()
-        last = self._world_key
-        if last is not None and t < self._world_time + 1.0:
-            if len(key) == 3:  # the common case, without a generator
-                moved = abs(gx - last[0]) + abs(gy - last[1]) + abs(gz - last[2])
-            else:
-                moved = sum(abs(a - b) for a, b in zip(key, last, strict=True))
-            if moved < 1e-3:
-                return
-        self._world_key, self._world_time = key, t
-        stamp = sim_stamp(t)
-        entities = [
-            SceneEntity(
-                timestamp=stamp,
-                frame_id=WORLD_FRAME,
-                id="goal",
-                spheres=[
-                    M.sphere((gx, gy, gz), 2 * SUCCESS_RADIUS, M.GOAL_COLOR),
-                    M.sphere((gx, gy, gz), 0.01, M.GOAL_DOT_COLOR),
-                ],
-            )
-        ]
-        radii = self._scenario.obstacle_radii
-        if len(radii):
-            spheres = [
-                M.sphere(c, 2 * float(r), M.OBSTACLE_COLOR)
-                for c, r in zip(np.asarray(obstacles).tolist(), radii.tolist(), strict=False)
-            ]
-            entities.append(
-                SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id="obstacles", spheres=spheres)
-            )
-        self._scene_world.log(SceneUpdate(entities=entities), log_time=round(t * 1e9))
-
-    def _publish_reference(self, t: float) -> None:
-        stamp = sim_stamp(t)
-        update = M.line_update(stamp, "reference", self._reference, M.REFERENCE_COLOR, 2.0)
-        self._scene_reference.log(update, log_time=round(t * 1e9))
-        self._next_reference = t + 1.0
+        self._scene.publish_world(0.0, scenario.goal_at(0.0), scenario.obstacles_at(0.0))
+        self._scene.publish_reference(0.0)
 
     def record(self, step: StepRecord) -> None:
         """Log one outer step (see the module docstring for what goes where)."""
@@ -460,18 +348,15 @@ class EpisodeLogger:
         plan = internals.pop("plan", None)
         self._log_method(t, internals, ns)
 
-        self._publish_world(t, goal, obs.obstacles)
+        scene = self._scene
+        scene.publish_world(t, goal, obs.obstacles)
         self._last_tcp = (tcp[0], tcp[1], tcp[2])
         if self._steps % self._path_every == 0:
-            self._path_points.append(Point3(x=tcp[0], y=tcp[1], z=tcp[2]))
-            self._publish_path(t)
-            if isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3:
-                points = M.points(plan, self._max_line_points)
-                self._scene_plan.log(
-                    M.line_update(stamp, "plan", points, self._plan_color, 3.0), log_time=ns
-                )
-        if t >= self._next_reference:
-            self._publish_reference(t)
+            scene.add_path_point(tcp[0], tcp[1], tcp[2])
+            scene.publish_path(t)
+            scene.publish_plan(t, plan)
+        if t >= scene.next_reference:
+            scene.publish_reference(t)
         self._steps += 1
         self._t = t
         if self._failures.cause:  # stop the episode: the rest of the log could not be written
@@ -530,22 +415,14 @@ class EpisodeLogger:
             ).encode()
         self._json[topic].base.log(data, ns)
 
-    def _publish_path(self, t: float) -> None:
-        if self._path_points:
-            update = M.line_update(
-                sim_stamp(t), "tcp_path", self._path_points, self._path_color, 3.0
-            )
-            self._scene_path.log(update, log_time=round(t * 1e9))
-
     def finish(self, result: EpisodeResult) -> None:
         """Write the result: the last path update, ``/episode`` and the ``outcome`` record."""
         if self._closed:
             return
         t = max(self._t, float(result.final_time))
         if self._last_tcp is not None and (self._steps - 1) % self._path_every:
-            x, y, z = self._last_tcp
-            self._path_points.append(Point3(x=x, y=y, z=z))
-        self._publish_path(t)
+            self._scene.add_path_point(*self._last_tcp)
+        self._scene.publish_path(t)
         row = result.as_row()
         status = "failed" if row.get("failure") else "finished"
         self._json["/episode"].base.log(M.dumps({"t": t, "status": status, **row}), round(t * 1e9))

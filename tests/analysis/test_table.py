@@ -256,3 +256,13 @@ def test_seeds_pool_only_with_equal_code_and_configuration():
     assert not unit(0).joins(unit(1, code="d"))  # other code
     assert not unit(0, code="").joins(unit(1, code=""))  # rows without a code hash
     assert not unit(0, key=None).joins(unit(1, key=None))  # no recorded configuration
+
+
+def test_a_task_without_one_of_the_methods_is_tabled_not_a_traceback(runs, tmp_path):
+    """A partial sweep (#23 item 14): Task 2 ran AMEX only; the table says so and pairs what it can."""
+    partial = tmp_path / "runs"
+    shutil.copytree(runs, partial, ignore=shutil.ignore_patterns("task2_dmp"))
+    assert main([str(partial), "--out", str(tmp_path / "out")]) == 0
+    md = (tmp_path / "out" / "fig5.md").read_text()
+    assert "| 2 | amex | 3 |" in md and "| 2 | dmp | 3 |" not in md
+    assert "| 1 | amex | dmp | final_time" in md and "| 2 | amex | dmp |" not in md

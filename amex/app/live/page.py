@@ -37,9 +37,9 @@ from amex.core.palette import (
     method_label,
     rgb255,
 )
+from amex.log.scene import SUCCESS_RADIUS
 
 log = logging.getLogger(__name__)
-SUCCESS_RADIUS = 0.03  # [m] the goal sphere drawn (the paper's success radius)
 GIZMO_SCALE = 0.12  # [m] length of a gizmo's arrows
 FRAME_RATE = 25.0  # [1/s] page updates
 SLOW_EVERY = 5  # frames between updates of the paths, the plan and the plot
