@@ -259,7 +259,7 @@ def test_seeds_pool_only_with_equal_code_and_configuration():
 
 
 def test_a_task_without_one_of_the_methods_is_tabled_not_a_traceback(runs, tmp_path):
-    """A partial sweep (#23 item 14): Task 2 ran AMEX only; the table says so and pairs what it can."""
+    """A partial sweep (#23 item 14): Task 2 ran AMEX only; the table pairs what it can."""
     partial = tmp_path / "runs"
     shutil.copytree(runs, partial, ignore=shutil.ignore_patterns("task2_dmp"))
     assert main([str(partial), "--out", str(tmp_path / "out")]) == 0

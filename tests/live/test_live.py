@@ -19,7 +19,8 @@ from amex.experiment.runner import prepare, setup
 from amex.log import read_log
 from amex.methods import METHODS
 from amex.sim.episode import run_episode
-from amex.sim.live import EpisodeStopped, LiveRecorder, LiveScenario, TimedMethod
+from amex.sim.live import LiveScenario, TimedMethod
+from amex.sim.pacing import EpisodeStopped, LiveRecorder
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import make_scenario
 

@@ -3,7 +3,7 @@
 :class:`LiveSession` composes the configuration once per method (``amex-run``'s composition with
 ``method=<name>``; overrides of ``method.*`` apply to the method they were given for), loads the
 robot and the reference plan once, and runs episodes with :func:`amex.sim.episode.run_episode`
-on a :class:`~amex.sim.live.LiveScenario` and a :class:`~amex.sim.live.LiveRecorder`. The live
+on a :class:`~amex.sim.live.LiveScenario` and a :class:`~amex.sim.pacing.LiveRecorder`. The live
 loop differs from a benchmark episode in two stopping rules only: it does not stop at the goal
 (move it again and the method follows) and its time limit is the session's (``max_time``, 5 min
 by default). Everything else (rates, controller, perception, prediction, mismatch, disturbance
@@ -34,15 +34,8 @@ from amex.core.errors import AmexError
 from amex.experiment.runner import EpisodeSetup, RunContext, preflight, prepare, setup
 from amex.methods import METHODS
 from amex.sim.episode import StepRecord, run_episode
-from amex.sim.live import (
-    EpisodeStopped,
-    LiveRecorder,
-    LiveScenario,
-    PaceStats,
-    PlanView,
-    TimedMethod,
-    method_plan,
-)
+from amex.sim.live import LiveScenario, PlanView, TimedMethod, method_plan
+from amex.sim.pacing import EpisodeStopped, LiveRecorder, PaceStats
 from amex.sim.scenario import Scenario, make_scenario
 
 SCENES = ("restart", "next", "reference")
@@ -70,7 +63,7 @@ class LiveState:
         distance: TCP to the true goal [m].
         phase_name, phase: the method's phase (AMEX s, DMP x, Track's index), or "" and NaN.
         step_time: the method's last step [s].
-        pace: the loop's pacing (:class:`~amex.sim.live.PaceStats`).
+        pace: the loop's pacing (:class:`~amex.sim.pacing.PaceStats`).
         status: a sentence: running, paused, ended (why), failed (why).
         recording: the log being written, or "".
     """
