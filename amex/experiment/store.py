@@ -1,5 +1,8 @@
 """``episodes.csv``: the one place episode results live, appended durably, read verified.
 
+One module on purpose (~450 lines): the file's format, its one writer and its one reader change
+together, and the row checks are shared by both.
+
 One row per episode: the metrics (:data:`amex.sim.metrics.COLUMNS`), then
 
 * ``config_hash``, ``scene_hash``, ``code_hash``: which configuration and code computed the row

@@ -98,10 +98,18 @@ class LivePage:
         self._notice = ("", 0.0)  # a message shown as the status until a time
         self._episode = -1
         self._frame = 0
+        server.gui.configure_theme(control_width="large")
+        goal = self._build_scene()
+        self._build_panel(goal)
+        server.on_client_connect(self._on_connect)
+        self._thread = threading.Thread(target=self._publish, name="amex-live-page", daemon=True)
+
+    def _build_scene(self) -> np.ndarray:
+        """The 3-D scene: grid, robot, reference, plan and path lines, the goal and its gizmo."""
+        server, session = self.server, self.session
+        scene = server.scene
         robot = session.context.robot
         plan = session.context.plan
-        scene, gui = server.scene, server.gui
-        server.gui.configure_theme(control_width="large")
         self._grid = scene.add_grid(
             "/grid", width=2.0, height=2.0, cell_color=rgb255(NEUTRAL_COLOR)
         )
@@ -132,7 +140,11 @@ class LivePage:
         self.obstacle_gizmos: list[Any] = []
         self._obstacle_spheres: list[Any] = []
         self._start, self._goal_ref = reference[0], reference[-1]
+        return goal
 
+    def _build_panel(self, goal: np.ndarray) -> None:
+        """The side panel: method and scene buttons, goal and obstacle fields, texts and plot."""
+        session, gui = self.session, self.server.gui
         with gui.add_folder("Method and scene"):
             self.method = gui.add_dropdown(
                 "method", options=tuple(session.method_names), initial_value=session.state.method
@@ -177,8 +189,6 @@ class LivePage:
                 axes=({}, {"scale": "m"}, {"scale": "phase", "side": 1, "grid": {"show": False}}),
                 aspect=1.6,
             )
-        server.on_client_connect(self._on_connect)
-        self._thread = threading.Thread(target=self._publish, name="amex-live-page", daemon=True)
 
     # -- wiring -----------------------------------------------------------------------------
     def _button(self, label: str, action: Any, hint: str | None = None) -> Any:
