@@ -184,17 +184,7 @@ def create_new(path: Path, data: bytes) -> None:
     """
     if os.path.lexists(path):
         raise FileExistsError(errno.EEXIST, "file exists, not overwriting it", str(path))
-    tmp = _write_temporary(path, data)
-    try:
-        os.link(tmp, path)  # fails if path appeared meanwhile
-    except FileExistsError:
-        raise FileExistsError(errno.EEXIST, "file exists, not overwriting it", str(path)) from None
-    except OSError as e:
-        raise WriteError(path, _reason(e)) from e
-    finally:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-    _sync_directory(path.parent)
+    publish_new(_write_temporary(path, data), path)  # the link fails if path appeared meanwhile
 
 
 #: The run locks this process holds: lock file -> (pid, fd, holds); the pid tells a forked copy.
