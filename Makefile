@@ -27,8 +27,10 @@ test: $(STAMP)
 ## this machine's: no test may depend on bits that follow the kernel (Intel and AMD differ).
 KERNEL_TESTS := tests/log/test_log.py tests/log/test_faults_logs.py tests/experiment/test_store.py \
   tests/experiment/test_faults_store.py tests/plan/test_faults_cache.py
+# SkylakeX too where the CPU has AVX-512 (OpenBLAS cannot run it elsewhere).
+KERNELS := Haswell Prescott $(shell grep -qw avx512f /proc/cpuinfo 2>/dev/null && echo SkylakeX)
 test-kernels: $(STAMP)
-	for kernel in Haswell Prescott; do \
+	for kernel in $(KERNELS); do \
 	  OPENBLAS_CORETYPE=$$kernel $(BIN)/python -m pytest -q $(KERNEL_TESTS) || exit $$?; \
 	done
 
