@@ -112,6 +112,8 @@ def paired_stats(
                 "ci_low": lo,
                 "ci_high": hi,
                 "wilcoxon_p": p,
+                "test": "wilcoxon",  # the columns of paired()'s rows, for paired_markdown
+                "p": p,
             }
         )
     return pd.DataFrame.from_records(records)

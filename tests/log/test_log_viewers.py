@@ -191,7 +191,8 @@ def test_layout_shows_the_scene_topics_that_have_messages_and_one_plot_line_per_
             t for t, c in data.channels.items() if t.startswith("/scene/") and c.message_count
         }
         assert set(scene["topics"]) == with_messages
-        assert ("/scene/plan" in scene["topics"]) == (method == "cr")  # only CR has a plan
+        planners = {"cr", "mppi"}  # the methods whose internals() carry a plan
+        assert ("/scene/plan" in scene["topics"]) == (method in planners)
         assert scene["layers"]["robot-urdf"]["url"] == "http://h/robot/robot.urdf"
         joints = data.metadata["robot"]["joint_names"]
         lines = layout["configById"]["Plot!qdd"]["paths"]
