@@ -56,7 +56,8 @@ def run_keys(file: str, config_hash: str) -> tuple[str | None, str]:
     config = recorded_config(file)
     if config is None:
         return None, config_hash
-    return _key(config, ("seed", *NOT_SCENE)), _key(config, ("seed", "episodes", "log", "shards"))
+    variant = ("seed", "episodes", "log", "shards", "shard")  # a shard is no variant of a cell
+    return _key(config, ("seed", *NOT_SCENE)), _key(config, variant)
 
 
 class _Unit:
