@@ -286,8 +286,11 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
         SceneDrawer,
         aim_camera,
         arm_model,
+        draw_caption,
+        frame_points,
         gl_context,
         joint_addresses,
+        split_viewport,
     )
 
     first = next(iter(episodes.values()))
@@ -302,8 +305,9 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
     try:
         scene = mujoco.MjvScene(model, maxgeom=20000)
         camera = mujoco.MjvCamera()
-        points = np.concatenate([first.reference, first.goal, first.tcp, first.obstacles])
-        aim_camera(camera, points, first.goal[0] - first.tcp[0], margin=1.9)
+        arm = frame_points(model, addresses, np.asarray(first.q)[-1:])  # the whole arm shown
+        points = np.concatenate([first.reference, first.goal, first.tcp, first.obstacles, arm])
+        aim_camera(camera, points, first.goal[0] - first.tcp[0], margin=1.1)
         mujoco.mjv_updateScene(
             model, data, mujoco.MjvOption(), None, camera, mujoco.mjtCatBit.mjCAT_ALL, scene
         )
@@ -323,15 +327,11 @@ def _render(episodes: dict[str, Episode], width: int, height: int) -> np.ndarray
         try:
             mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, context)
             viewport = mujoco.MjrRect(0, 0, width, height)
-            mujoco.mjr_render(viewport, scene, context)
-            mujoco.mjr_overlay(
-                mujoco.mjtFont.mjFONT_BIG,
-                mujoco.mjtGridPos.mjGRID_TOPLEFT,
-                viewport,
-                f"arm: {method_label(first.method)}, t = {first.t[-1]:.2f} s",
-                "",
-                context,
-            )
+            view, top, bottom = split_viewport(viewport, 40)  # the caption off the scene
+            mujoco.mjr_render(view, scene, context)
+            caption = f"arm: {method_label(first.method)}, t = {first.t[-1]:.2f} s"
+            draw_caption(context, top, caption)
+            draw_caption(context, bottom, "")
             rgb = np.empty((height, width, 3), dtype=np.uint8)
             mujoco.mjr_readPixels(rgb, None, viewport, context)
         finally:
