@@ -452,6 +452,9 @@ class Table(NamedTuple):
     argv: tuple[str, ...]  # ``python -m ...`` arguments, run from the repository root
 
 
+#: The ablation's steps 1-4 (conf/experiment/ablation/), committed under docs/data/runs/ablation/.
+ABLATION_STEPS = ("1_harness", "2_controller", "3_methods", "4_dynamic")
+
 TABLES: tuple[Table, ...] = (
     Table(
         "docs/generated/paper/fig5.md",
@@ -466,6 +469,15 @@ TABLES: tuple[Table, ...] = (
         ),
     ),
     Table("docs/generated/seeds/fig5.md", ("analysis.table", "docs/data/runs/seeds")),
+    Table(
+        "docs/generated/ablation/compare.md",
+        (
+            "analysis.compare",
+            "original=docs/data/runs/paper_original",
+            *(f"{step}=docs/data/runs/ablation/{step}" for step in ABLATION_STEPS),
+            "ours=docs/data/runs/paper",
+        ),
+    ),
     Table(
         "docs/generated/compute/compute.md",
         (
