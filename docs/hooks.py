@@ -452,8 +452,8 @@ class Table(NamedTuple):
     argv: tuple[str, ...]  # ``python -m ...`` arguments, run from the repository root
 
 
-#: The ablation's steps 1-4 (conf/experiment/ablation/), committed under docs/data/runs/ablation/.
-ABLATION_STEPS = ("1_harness", "2_controller", "3_methods", "4_dynamic")
+#: The ablation's steps committed under docs/data/runs/ablation/ (conf/experiment/ablation/).
+ABLATION_STEPS = ("1_harness", "2_controller")
 
 TABLES: tuple[Table, ...] = (
     Table(
@@ -482,7 +482,7 @@ TABLES: tuple[Table, ...] = (
         "docs/generated/compute/compute.md",
         (
             "analysis.compute",
-            "alone=docs/data/runs/compute/alone",
+            "beside_sweep=docs/data/runs/compute/beside_sweep",
             "loaded=docs/data/runs/compute/loaded",
         ),
     ),
