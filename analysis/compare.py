@@ -154,6 +154,18 @@ def per_task(columns: dict[str, list[Claim]]) -> list[str]:
     return parts
 
 
+def _std_note(frames: dict[str, pd.DataFrame]) -> str:
+    """Which standard deviation each benchmark's 2 std is (the runs' ``std_ddof``)."""
+    kinds = {0: "over N (the population's)", 1: "over N - 1 (MATLAB's, as the paper)"}
+    parts = [
+        f"{label} {kinds.get(int(ddof), f'over N - {int(ddof)}')}"
+        for label, df in frames.items()
+        if "std_ddof" in df and len(df)
+        for ddof in sorted(set(df.std_ddof))
+    ]
+    return f"2 std: {', '.join(parts)}." if parts else ""
+
+
 def report(
     frames: dict[str, pd.DataFrame], episodes: dict[str, pd.DataFrame], sources: dict[str, Path]
 ) -> str:
@@ -168,7 +180,7 @@ def report(
             f"The paper (Englert & Toussaint 2014, Fig. 5) and {listed}. Means over the "
             "environments; the paper counted success at 0.05 m (its text says 0.03 m) and "
             "computed the sum of squared accelerations from joint angles rounded to 6 digits "
-            "(`sum_sq_acc_paper`).\n",
+            f"(`sum_sq_acc_paper`). {_std_note(frames)}\n",
             numbers(frames),
             "\n## By benchmark\n",
             *(by_benchmark(frames, *m) for m in MEASURES),

@@ -87,7 +87,8 @@ def paired_stats(
     """Episodes ``a`` minus episodes ``b`` on the environments both ran, one row per metric.
 
     Each row: pairs, the two means, the mean difference, its bootstrap 95 % interval
-    (:func:`bootstrap_ci`) and the Wilcoxon signed-rank p (NaN below 2 pairs).
+    (:func:`bootstrap_ci`) and the Wilcoxon signed-rank p (NaN below 2 pairs), as ``wilcoxon_p``
+    and as ``test`` / ``p`` (the columns of :func:`paired`).
     """
     from scipy.stats import wilcoxon
 

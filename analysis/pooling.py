@@ -44,7 +44,12 @@ def recorded_config(file: str) -> dict | None:
 
 
 def _key(config: dict, leave_out: tuple[str, ...]) -> str:
-    spec = {k: v for k, v in config.items() if k not in leave_out}
+    # std_ddof 0 is what runs recorded before the option existed meant
+    spec = {
+        k: v
+        for k, v in config.items()
+        if k not in leave_out and not (k == "std_ddof" and v == 0)
+    }
     return hashlib.sha256(json.dumps(spec, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

@@ -30,7 +30,7 @@ from .comparisons import METHOD_ORDER, method_rank, paired
 from .episodes import TableError, load_runs
 from .latex import fig5_latex
 from .markdown import markdown_table, paired_markdown
-from .pooling import benchmark_ids
+from .pooling import benchmark_ids, recorded_config
 from .verdict_tables import verdict_sections
 
 #: Also importable from here, where they lived first (scripts and tests use them).
@@ -101,25 +101,47 @@ def benchmarks(df: pd.DataFrame) -> list[Benchmark]:
     return sorted(groups, key=lambda b: (-len(b.episodes), b.scene_hash))
 
 
-def _mean_2std(values: pd.Series) -> tuple[float, float]:
+def _mean_2std(values: pd.Series, ddof: int = 0) -> tuple[float, float]:
     a = values.to_numpy(dtype=float)
-    return float(a.mean()), float(2.0 * a.std())
+    return float(a.mean()), float(2.0 * a.std(ddof=ddof)) if a.size > ddof else math.nan
+
+
+def std_ddof(g: pd.DataFrame) -> int:
+    """The ``std_ddof`` the runs of ``g`` recorded (``.hydra/config.yaml``; 0 without one).
+
+    Raises:
+        TableError: the runs of one cell recorded different values.
+    """
+    files = sorted(set(g.file)) if "file" in g else []
+    values = {int((recorded_config(f) or {}).get("std_ddof", 0)) for f in files} or {0}
+    if len(values) > 1:
+        raise TableError(
+            f"the runs of one cell recorded different std_ddof ({sorted(values)}): "
+            f"{', '.join(files)}; valid: runs of one convention"
+        )
+    return values.pop()
 
 
 def aggregate(df: pd.DataFrame) -> pd.DataFrame:
-    """Fig. 5 per (task, method): means and 2 std, our definitions (:mod:`amex.sim.metrics`)."""
+    """Fig. 5 per (task, method): means and 2 std (:mod:`amex.sim.metrics`).
+
+    The standard deviations divide by N - ``std_ddof``, the value the runs recorded: 0 ours, 1
+    the authors' (``experiment=original``).
+    """
     records = []
     for (task, method), g in df.groupby(["task", "method"]):
-        ft, ft2 = _mean_2std(g.final_time)
-        acc, acc2 = _mean_2std(g.sum_sq_acc)
-        paper_acc, paper_acc2 = _mean_2std(g.sum_sq_acc_paper)
-        ct, ct2 = _mean_2std(g.compute_time_mean)
+        ddof = std_ddof(g)
+        ft, ft2 = _mean_2std(g.final_time, ddof)
+        acc, acc2 = _mean_2std(g.sum_sq_acc, ddof)
+        paper_acc, paper_acc2 = _mean_2std(g.sum_sq_acc_paper, ddof)
+        ct, ct2 = _mean_2std(g.compute_time_mean, ddof)
         records.append(
             {
                 "task": task,
                 "method": method,
                 "episodes": len(g),
                 "seeds": int(g.seed.nunique()) if "seed" in g else 1,
+                "std_ddof": ddof,
                 "success": g.success.mean(),
                 "success_005": g.success_005.mean(),
                 "collided": g.collided.mean(),

@@ -452,6 +452,9 @@ class Table(NamedTuple):
     argv: tuple[str, ...]  # ``python -m ...`` arguments, run from the repository root
 
 
+#: The ablation's steps committed under docs/data/runs/ablation/ (conf/experiment/ablation/).
+ABLATION_STEPS = ("1_harness", "2_controller")
+
 TABLES: tuple[Table, ...] = (
     Table(
         "docs/generated/paper/fig5.md",
@@ -467,10 +470,19 @@ TABLES: tuple[Table, ...] = (
     ),
     Table("docs/generated/seeds/fig5.md", ("analysis.table", "docs/data/runs/seeds")),
     Table(
+        "docs/generated/ablation/compare.md",
+        (
+            "analysis.compare",
+            "original=docs/data/runs/paper_original",
+            *(f"{step}=docs/data/runs/ablation/{step}" for step in ABLATION_STEPS),
+            "ours=docs/data/runs/paper",
+        ),
+    ),
+    Table(
         "docs/generated/compute/compute.md",
         (
             "analysis.compute",
-            "alone=docs/data/runs/compute/alone",
+            "beside_sweep=docs/data/runs/compute/beside_sweep",
             "loaded=docs/data/runs/compute/loaded",
         ),
     ),

@@ -110,6 +110,10 @@ class RunConfig:
         final_time: ``elapsed`` (the time of the episode's last step) or ``samples`` (the
             authors' count: their joint samples times 1 ms, 1-2 ms more;
             :func:`amex.sim.loop.authors_samples`).
+        std_ddof: the delta degrees of freedom of every standard deviation the run's summary and
+            the tables report (``2 std``): 0, the population's (ours), or 1, MATLAB's ``std``
+            (N - 1), which the authors' Fig. 5 took (:func:`amex.sim.metrics.mean_2std`). It
+            changes no episode.
         implementation: ``ours`` or ``original``: amex, dmp and cr as the authors' harness ran
             them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
         log: ``none`` or ``full`` (one MCAP file per episode).
@@ -141,6 +145,7 @@ class RunConfig:
     sim: str = "dynamic"
     state_lag: bool = False
     final_time: str = "elapsed"
+    std_ddof: int = field(default=0, metadata=limits(ge=0, le=1))
     implementation: str = "ours"
     log: str = "none"
     shards: int = field(default=1, metadata=limits(ge=1))

@@ -70,7 +70,8 @@ NUMERIC_DISTRIBUTIONS = (
     "example-robot-data-loaders",
 )
 _AMEX_ROOT = Path(__file__).resolve().parents[1]  # the amex package
-_NOT_RESULTS = ("episodes", "log", "shards", "shard")  # which rows, not what they hold
+# which rows, not what they hold; std_ddof: how the summary aggregates them
+_NOT_RESULTS = ("episodes", "log", "shards", "shard", "std_ddof")
 # Options added after runs were recorded, with the value that reproduces the behaviour before
 # them: at that value they are left out of the hashed configuration, which therefore reads as it
 # did before the option existed (the code digest beside it changes with any change of the code

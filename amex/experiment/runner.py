@@ -268,7 +268,7 @@ def _run_locked(
         if progress is not None:
             progress(env, result)
     results = [store.done[env] for env in envs]
-    summary = summarize(results)
+    summary = summarize(results, ddof=config.std_ddof)
     summary.update(
         {
             "task": config.task,

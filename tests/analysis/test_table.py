@@ -266,3 +266,28 @@ def test_a_task_without_one_of_the_methods_is_tabled_not_a_traceback(runs, tmp_p
     md = (tmp_path / "out" / "fig5.md").read_text()
     assert "| 2 | amex | 3 |" in md and "| 2 | dmp | 3 |" not in md
     assert "| 1 | amex | dmp | final_time" in md and "| 2 | amex | dmp |" not in md
+
+
+def test_2_std_divides_by_n_minus_the_std_ddof_the_runs_recorded(runs, tmp_path):
+    import numpy as np
+    import pandas as pd
+    import yaml
+
+    from analysis.episodes import TableError, load_runs
+    from analysis.table import aggregate
+
+    def copy(ddof, name):
+        cell = tmp_path / name
+        shutil.copytree(runs / "task1_amex", cell)
+        (cell / ".hydra").mkdir()
+        (cell / ".hydra" / "config.yaml").write_text(yaml.safe_dump({"std_ddof": ddof}))
+        return cell
+
+    ft = load_runs(runs / "task1_amex").final_time.to_numpy()
+    assert np.ptp(ft) > 0  # a spread to measure
+    cells = {ddof: load_runs(copy(ddof, f"ddof{ddof}")) for ddof in (0, 1)}
+    for ddof, episodes in cells.items():
+        (row,) = aggregate(episodes).itertuples()
+        assert row.std_ddof == ddof and row.final_time_2std == 2 * ft.std(ddof=ddof)
+    with pytest.raises(TableError, match="different std_ddof"):
+        aggregate(pd.concat(cells.values()))  # one cell from runs of both conventions

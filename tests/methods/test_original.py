@@ -142,7 +142,7 @@ def test_the_original_experiment_composes_the_authors_setup():
     np.testing.assert_allclose(box.min(axis=0), [0.4, -1.8, 0.8])
     np.testing.assert_allclose(box.max(axis=0), [1.1, -1.0, 2.6])
     assert config.loop.stop_radius == 0.03
-    assert config.loop.final_time == "samples"
+    assert config.loop.final_time == "samples" and config.std_ddof == 1  # their MATLAB std
     controller = config.controller
     assert (controller.collision_cost, controller.col.weight) == ("proxy", 1.0)
     assert controller.proxy_arm_radii == [0.3] * 6 + [0.0002]
@@ -174,3 +174,18 @@ def test_an_original_episode_reaches_a_task1_goal(method):
     assert result.sum_sq_acc_paper > result.sum_sq_acc  # rounding noise on top
     elapsed = run_one(replace(config, final_time="elapsed"), prepare(config), 0).final_time
     assert result.final_time == pytest.approx(elapsed + 1e-3, abs=1e-9)  # one sample more
+
+
+def test_the_ablation_switches_the_authors_metrics_then_their_collision_task():
+    steps = {
+        s: load_config([f"experiment=ablation/{s}", "task=3", "method=cr"])
+        for s in ("1_harness", "2_controller", "3_methods")
+    }
+    harness, controller, methods = steps.values()
+    assert (harness.final_time, harness.std_ddof) == ("elapsed", 0)
+    assert harness.controller.collision_cost == "proxy" and harness.controller.col.weight == 1.0
+    assert controller.controller.collision_cost == "hinge"
+    assert controller.controller.col.weight == 10.0
+    assert controller.implementation == "original" and methods.implementation == "ours"
+    # CR's plan term is its implementation's own (auto): theirs until step 3 replaces it
+    assert {s.method_config().collision_cost for s in steps.values()} == {"auto"}
