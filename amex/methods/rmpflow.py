@@ -7,7 +7,8 @@ Each outer step, at the measured ``(q, q_dot)``, every leaf i on its task space 
 
     f = sum_i J_i^T M_i (a_i - J_dot_i q_dot),   M = sum_i J_i^T M_i J_i,   q_ddot = M^+ f
 
-with the pseudo-inverse ``M^+``. The leaves: the TCP position's goal attractor (``x = p_tcp``,
+with the pseudo-inverse ``M^+`` (``M^-1`` by Cholesky: the damping leaf's constant metric
+makes M positive definite; the pseudo-inverse only if the factorization fails). The leaves: the TCP position's goal attractor (``x = p_tcp``,
 Pinocchio's frame Jacobian and classical acceleration), the TCP axis attractor (``x = z``,
 ``J = -[z]x J_w``), one obstacle leaf per arm-capsule/obstacle pair within ``obstacle_radius``
 (``x = d``, coal distances, :mod:`amex.methods.clearance`), two joint-limit leaves per joint
@@ -263,7 +264,11 @@ class RMPflow(Method):
         force = force + rest.metric * rest.accel + damp.metric * damp.accel
         A[np.diag_indices(n)] += diag
         b += force
-        qdd = np.linalg.pinv(A, rcond=c.rcond, hermitian=True) @ b
+        try:  # M is positive definite (the damping leaf's inertia): M^+ = M^-1, by Cholesky
+            L = np.linalg.cholesky(A)
+            qdd = np.linalg.solve(L.T, np.linalg.solve(L, b))
+        except np.linalg.LinAlgError:
+            qdd = np.linalg.pinv(A, rcond=c.rcond, hermitian=True) @ b
         return Resolved(qdd, A, b)
 
     # ----------------------------------------------------------------------------- Method
