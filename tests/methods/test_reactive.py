@@ -180,8 +180,9 @@ def test_the_resolved_rmp_is_the_pullback_of_every_leaf(robot):
                                     *method._obstacle)  # fmt: skip
     np.testing.assert_allclose(out.metric - bare.metric, G.T @ (rmp.metric[:, None] * G),
                                atol=1e-9)  # fmt: skip
-    np.testing.assert_allclose(out.force - bare.force,
-                               G.T @ (rmp.metric * (rmp.accel - snap.pairs.drift)), atol=1e-9)
+    np.testing.assert_allclose(
+        out.force - bare.force, G.T @ (rmp.metric * (rmp.accel - snap.pairs.drift)), atol=1e-9
+    )
 
 
 def test_the_obstacle_leaf_pushes_away_and_its_metric_vanishes_at_the_radius():
@@ -370,3 +371,31 @@ def test_short_episodes_of_every_task_reach_the_goal_without_contact(context, na
     assert result.success and not result.failure and not result.collided, (name, task)
     if task >= 3:
         assert result.min_clearance > 0.0
+
+
+# ----------------------------------------------------------------------------- the study
+def _study_jobs(*arguments: str) -> list[list[str]]:
+    from amex.app.checks import sweep_settings
+    from amex.app.sweeps import sweep_jobs
+
+    params, grids, shards, _ = sweep_settings(["study=baselines", *arguments], [])
+    return sweep_jobs(params, grids, ["study=baselines", *arguments], shards)
+
+
+def _cell(job: list[str]) -> tuple[str, str, str]:
+    values = dict(o.split("=", 1) for o in job)
+    return values["method"], values["robot"], values["task"]
+
+
+def test_the_study_runs_every_method_robot_and_task_once_in_its_own_directory():
+    jobs = _study_jobs()
+    cells = [_cell(job) for job in jobs]
+    assert len(cells) == len(set(cells)) == 8 * 3 * 4
+    episodes = {_cell(j)[1]: dict(o.split("=", 1) for o in j)["episodes"] for j in jobs}
+    assert episodes == {"panda": "150", "ur5": "30", "chain7": "30"}
+
+
+def test_one_method_of_the_study_runs_only_its_own_cells():
+    cells = [_cell(job) for job in _study_jobs("method=mppi")]
+    assert len(cells) == 12 and {m for m, _, _ in cells} == {"mppi"}
+    assert set(cells) <= {_cell(job) for job in _study_jobs()}
