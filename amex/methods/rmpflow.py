@@ -31,6 +31,7 @@ import numpy as np
 
 from amex.core.scaling import scaled
 from amex.core.types import Command, Observation
+from amex.methods import rmpflow_kernels as kernels
 from amex.methods import rmpflow_leaves as leaves
 from amex.methods.base import Method, MethodConfig, invalid
 from amex.methods.clearance import ArmSensor, ArmSnapshot
@@ -212,12 +213,40 @@ class RMPflow(Method):
         self._limit = (c.limit_metric, c.limit_metric_length, c.limit_metric_eps,
                        c.limit_velocity_gate, c.limit_damping, c.limit_gain, c.limit_gain_length,
                        c.limit_gain_eps)  # fmt: skip
+        self._params = tuple(np.array(p, dtype=float) for p in (
+            self._goal, (c.axis_gain, c.axis_damping, c.axis_metric), self._obstacle,
+            self._limit, (c.posture_gain, c.posture_damping, c.posture_limit, c.posture_metric),
+            (c.damping_gain, c.damping_metric, c.damping_inertia)))  # fmt: skip
         self._last: Resolved | None = None
         self._pairs = 0
 
     # ----------------------------------------------------------------------------- policy
     def resolve(self, snap: ArmSnapshot, goal: np.ndarray) -> Resolved:
-        """Pull every leaf back to the joint space and resolve (module notes).
+        """Pull every leaf back to the joint space and resolve (module notes), compiled.
+
+        The same formulas as :meth:`resolve_leaves` in one call
+        (:func:`amex.methods.rmpflow_kernels.resolve`); the pseudo-inverse if the Cholesky
+        factorization of the metric fails.
+
+        Args:
+            snap: the arm at the measured state (pairs within ``obstacle_radius``, with drift).
+            goal: TCP goal position and axis, shape (6,).
+        """
+        state, pairs = snap.state, snap.pairs
+        n = len(state.q)
+        A, b, qdd = np.empty((n, n)), np.empty(n), np.empty(n)
+        ok = kernels.resolve(state.J, state.y, state.acc_drift, state.q, state.v,
+                             np.asarray(goal, dtype=float), self.q_lo, self.q_hi, self.q_rest,
+                             pairs.distance, pairs.gradient, pairs.rate, pairs.drift,
+                             *self._params, A, b, qdd)  # fmt: skip
+        if not ok:
+            qdd = np.linalg.pinv(A, rcond=self.config.rcond, hermitian=True) @ b
+        return Resolved(qdd, A, b)
+
+    def resolve_leaves(self, snap: ArmSnapshot, goal: np.ndarray) -> Resolved:
+        """Pull every leaf back to the joint space and resolve (module notes), leaf by leaf.
+
+        The readable form (:mod:`amex.methods.rmpflow_leaves`) that :meth:`resolve` compiles.
 
         Args:
             snap: the arm at the measured state (pairs within ``obstacle_radius``, with drift).

@@ -167,12 +167,16 @@ def test_the_resolved_rmp_is_the_pullback_of_every_leaf(robot):
     snap = method.sensor.measure(0.0, q, qd, centers, radii, method.config.obstacle_radius,
                                  drift=True)  # fmt: skip
     goal = robot.task_position(robot.q0) + [0.05, 0.0, 0.02, 0.0, 0.0, 0.0]
-    out = method.resolve(snap, goal)
+    out = method.resolve_leaves(snap, goal)
+    compiled = method.resolve(snap, goal)  # the kernel computes the same leaves
+    np.testing.assert_allclose(compiled.metric, out.metric, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(compiled.force, out.force, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(compiled.qdd, out.qdd, rtol=1e-8, atol=1e-9)
     np.testing.assert_allclose(out.metric, out.metric.T, atol=1e-12)
     assert np.linalg.eigvalsh(out.metric).min() > 0.0  # the damping leaf's inertia
     np.testing.assert_allclose(out.metric @ out.qdd, out.force, rtol=1e-8, atol=1e-10)
     # without the obstacle its leaves' share is gone: the pullback of the pairs is additive
-    bare = method.resolve(snap._replace(pairs=snap.pairs._replace(
+    bare = method.resolve_leaves(snap._replace(pairs=snap.pairs._replace(
         distance=snap.pairs.distance[:0], gradient=snap.pairs.gradient[:0],
         rate=snap.pairs.rate[:0], drift=snap.pairs.drift[:0])), goal)  # fmt: skip
     G = snap.pairs.gradient
