@@ -2,7 +2,7 @@
 
 Usage::
 
-    python -m analysis.baselines RUNS_DIR [--out DIR]            # the study (conf/study/baselines.yaml)
+    python -m analysis.baselines RUNS_DIR [--out DIR] [--robot R]  # conf/study/baselines.yaml
     python -m analysis.baselines --tuning DIR [DIR ...] [--out DIR]  # the tuning sweeps
 
 The study's runs are ``RUNS_DIR/method=<m>,robot=<r>,task=<t>/episodes.csv`` (the robot is read
@@ -154,10 +154,7 @@ def paired_rows(df: pd.DataFrame, pairs: Sequence[tuple[str, str]]) -> list[dict
                 va, vb = pair[(metric, a)].to_numpy(), pair[(metric, b)].to_numpy()
                 d = va - vb
                 ci = mean_interval(d, resamples(pair.index.get_level_values("seed").to_numpy()))
-                if metric == "success":
-                    p = mcnemar_p(va > 0.5, vb > 0.5)
-                else:
-                    p = wilcoxon(d)[0]
+                p = mcnemar_p(va > 0.5, vb > 0.5) if metric == "success" else wilcoxon(d)[0]
                 out.append(
                     {
                         "task": int(task),
@@ -301,7 +298,7 @@ def _write(path: Path, text: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Command line (module notes)."""
     parser = OneLineParser(prog="analysis.baselines", description=__doc__.splitlines()[0])
-    parser.add_argument("runs", nargs="*", type=Path, help="the study's runs (or the tuning sweeps)")
+    parser.add_argument("runs", nargs="*", type=Path, help="the study's runs (or tuning sweeps)")
     parser.add_argument("--tuning", action="store_true", help="the runs are tuning sweeps")
     parser.add_argument("--out", default=default_out(), type=Path)
     parser.add_argument("--robot", choices=ROBOTS, help="only this robot's file")

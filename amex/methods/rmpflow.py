@@ -8,9 +8,10 @@ Each outer step, at the measured ``(q, q_dot)``, every leaf i on its task space 
     f = sum_i J_i^T M_i (a_i - J_dot_i q_dot),   M = sum_i J_i^T M_i J_i,   q_ddot = M^+ f
 
 with the pseudo-inverse ``M^+`` (``M^-1`` by Cholesky: the damping leaf's constant metric
-makes M positive definite; the pseudo-inverse only if the factorization fails). The leaves: the TCP position's goal attractor (``x = p_tcp``,
-Pinocchio's frame Jacobian and classical acceleration), the TCP axis attractor (``x = z``,
-``J = -[z]x J_w``), one obstacle leaf per arm-capsule/obstacle pair within ``obstacle_radius``
+makes M positive definite; the pseudo-inverse only if the factorization fails). The leaves: the
+TCP position's goal attractor (``x = p_tcp``, Pinocchio's frame Jacobian and classical
+acceleration), the TCP axis attractor (``x = z``, ``J = -[z]x J_w``), one obstacle leaf per
+arm-capsule/obstacle pair within ``obstacle_radius``
 (``x = d``, coal distances, :mod:`amex.methods.clearance`), two joint-limit leaves per joint
 (``x = q_hi - b - q`` and ``q - q_lo - b``), the default configuration (``x = q - q0``) and the
 joint-velocity damping (``x = q``).
@@ -238,7 +239,7 @@ class RMPflow(Method):
         ok = kernels.resolve(state.J, state.y, state.acc_drift, state.q, state.v,
                              np.asarray(goal, dtype=float), self.q_lo, self.q_hi, self.q_rest,
                              pairs.distance, pairs.gradient, pairs.rate, pairs.drift,
-                             *self._params, A, b, qdd)  # fmt: skip
+                             *self._params, A, b, qdd)  # type: ignore[call-arg]  # fmt: skip
         if not ok:
             qdd = np.linalg.pinv(A, rcond=self.config.rcond, hermitian=True) @ b
         return Resolved(qdd, A, b)

@@ -1,6 +1,8 @@
-"""Compiled (Numba) RMPflow step: every leaf of :mod:`amex.methods.rmpflow_leaves`, pulled back
-and resolved in one call (the formulas of :meth:`amex.methods.rmpflow.RMPflow.resolve_leaves`,
-which stays the readable reference the tests compare this kernel with).
+"""Compiled (Numba) RMPflow step: every leaf pulled back and resolved in one call.
+
+The leaves of :mod:`amex.methods.rmpflow_leaves`, with the formulas of
+:meth:`amex.methods.rmpflow.RMPflow.resolve_leaves`, which stays the readable reference the tests
+compare this kernel with.
 
 Compiled without ``fastmath``: IEEE operations in program order, the same numbers on every run.
 The resolve is a Cholesky solve of the summed metric (positive definite by the damping leaf's
@@ -102,10 +104,7 @@ def resolve(J, y, acc_drift, q, qd, goal, q_lo, q_hi, q_rest, distance, gradient
         x = max(distance[k] - margin, 0.0)
         gate = 1.0 - _sigmoid(dd / ovg)
         a = og * math.exp(-x / ogl) - gate * od * dd / (x / odl + odeps)
-        if x < orad:
-            m = gate * (om / (x / oml + omeps) * (1.0 - x / orad) ** 2)
-        else:
-            m = 0.0
+        m = gate * (om / (x / oml + omeps) * (1.0 - x / orad) ** 2) if x < orad else 0.0
         if m != 0.0:
             fk = m * (a - drift[k])
             for r in range(n):
