@@ -15,7 +15,9 @@ with three tables:
   ``deadline_misses``, and the outer step's thread CPU time: the median over episodes of each
   episode's median step, and the 95th percentile over episodes of the same (per-step
   percentiles: ``make bench``);
-* every method against AMEX, and the pairs that isolate one factor (``amex_cbf`` - ``cbf_ik``:
+* every method against AMEX (one row per task and metric, one column per method: the mean paired
+  difference and "better", "worse" or "~"), and the pairs that isolate one factor
+  (``amex_cbf`` - ``cbf_ik``:
   AMEX's plan adaptation behind the same filter; ``amex_cbf`` - ``amex``: the filter and joint
   targets; ``dmp_avoid`` - ``dmp``: the coupling term; ``rmpflow`` - ``cbf_ik``: metric-weighted
   avoidance against hard barriers): paired on the same environments, the mean difference a - b
@@ -195,6 +197,30 @@ def paired_table(records: list[dict]) -> pd.DataFrame:
     return pd.DataFrame.from_records(rows)
 
 
+def against_table(records: list[dict], reference: str = "amex") -> pd.DataFrame:
+    """Every method against ``reference``: one row per task and metric, one column per method.
+
+    A cell is the mean paired difference (method - reference) and ``better`` or ``worse`` when
+    its test's p is below 0.05 / m (m: the tests in the table, Bonferroni), else ``~``.
+    """
+    m = max(len(records), 1)
+    methods = list(dict.fromkeys(r["a"] for r in records))
+    cells: dict[tuple[int, str], dict[str, str]] = {}
+    for r in records:
+        word = "~"
+        if r["p"] < ALPHA / m and r["diff"] != 0:
+            word = "better" if r["diff"] * r["sign"] > 0 else "worse"
+        key = (r["task"], r["metric"])
+        cells.setdefault(key, {})[r["a"]] = f"{r['diff']:.3g} {word}"
+    order = [metric for metric, _ in PAIRED]
+    rows = []
+    for task, metric in sorted(cells, key=lambda k: (k[0], order.index(k[1]))):
+        row = {"task": task, "metric": f"{metric} (- {reference})"}
+        row.update({method: cells[(task, metric)].get(method, "-") for method in methods})
+        rows.append(row)
+    return pd.DataFrame.from_records(rows)
+
+
 def robot_report(df: pd.DataFrame, robot: str) -> str:
     """The three tables of one robot (module notes) as Markdown."""
     present = [m for m in METHODS if m in set(df.method)]
@@ -214,7 +240,7 @@ def robot_report(df: pd.DataFrame, robot: str) -> str:
     lines += [
         "## Every method against AMEX",
         "",
-        markdown_table(paired_table(paired_rows(df, against))),
+        markdown_table(against_table(paired_rows(df, against))),
         "",
     ]
     factors = [p for p in FACTOR_PAIRS if p[0] in present and p[1] in present]
