@@ -237,12 +237,12 @@ def robot_report(df: pd.DataFrame, robot: str) -> str:
         lines += ["", f"Not in the runs (left out): {', '.join(missing)}."]
     lines += ["", "## Per task and method", "", markdown_table(summary(df)), ""]
     against = [(m, "amex") for m in present if m != "amex"]
-    lines += [
-        "## Every method against AMEX",
-        "",
-        markdown_table(against_table(paired_rows(df, against))),
-        "",
-    ]
+    records = paired_rows(df, against) if "amex" in present else []
+    lines += ["## Every method against AMEX", ""]
+    if records:
+        lines += [markdown_table(against_table(records)), ""]
+    else:
+        lines += ["(AMEX, or every other method, is not in the runs)", ""]
     factors = [p for p in FACTOR_PAIRS if p[0] in present and p[1] in present]
     lines += ["## The pairs that isolate one factor", ""]
     if factors:
