@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from amex.core.scaling import scaled
-from amex.core.types import Command, Observation
+from amex.core.types import Command, Observation, require_finite
 from amex.methods import rmpflow_kernels as kernels
 from amex.methods import rmpflow_leaves as leaves
 from amex.methods.base import Method, MethodConfig, invalid
@@ -309,6 +309,7 @@ class RMPflow(Method):
 
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`: resolve at the measured state, send the period's motion."""
+        require_finite(goal=obs.goal)  # before the sensor's state changes
         snap = self.sensor.measure(obs.t, obs.q, obs.qd, obs.obstacles, obs.obstacle_radii,
                                    self.config.obstacle_radius, drift=True)  # fmt: skip
         out = self.resolve(snap, obs.goal)
