@@ -165,7 +165,7 @@ def test_help_lists_tasks_methods_robots_experiments_options_and_outputs(tmp_pat
 def test_a_schema_is_not_a_method(tmp_path):
     proc = _run(["method=schema_amex"], tmp_path)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1
-    assert "invalid method='schema_amex'; valid: amex, cr" in proc.stderr
+    assert "invalid method='schema_amex'; valid: amex, amex_cbf, cbf_ik, cr" in proc.stderr
     assert not (tmp_path / "runs").exists()
 
 

@@ -87,7 +87,7 @@ def test_a_glob_sweep_over_a_config_group_expands():
     from amex.app.checks import command_line_jobs
 
     jobs, _ = command_line_jobs(["method=glob(dmp*)", "task=0"], multirun=True)
-    assert sorted(job[0] for job in jobs) == ["method=dmp", "method=dmp_ps"]
+    assert sorted(job[0] for job in jobs) == ["method=dmp", "method=dmp_avoid", "method=dmp_ps"]
 
 
 @pytest.mark.parametrize(
