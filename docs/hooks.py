@@ -486,6 +486,21 @@ TABLES: tuple[Table, ...] = (
             "loaded=docs/data/runs/compute/loaded",
         ),
     ),
+    *(
+        Table(
+            f"docs/generated/baselines/{robot}.md",
+            ("analysis.baselines", "docs/data/runs/baselines", "--robot", robot),
+        )
+        for robot in ("panda", "ur5", "chain7")
+    ),
+    Table(
+        "docs/generated/baselines/tuning.md",
+        (
+            "analysis.baselines",
+            "--tuning",
+            *(f"docs/data/runs/tuning/{m}" for m in ("rmpflow", "dmp_avoid", "cbf_ik", "amex_cbf")),
+        ),
+    ),
 )
 
 

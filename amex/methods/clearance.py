@@ -13,11 +13,16 @@ closer than an activation distance, the signed distance ``d`` (coal, through
 * rate: ``dd/dt`` at ``q_dot = 0`` from the obstacle's velocity ``v_o``, ``-n^T v_o``, where
   ``v_o`` is the finite difference of the perceived centres between two outer steps (0 at the
   first step and for static obstacles);
-* drift (on request): ``d_ddot`` at ``q_ddot = 0``, ``n^T a_p + (|v_rel|^2 - (n^T v_rel)^2) / rho``
-  with ``a_p`` the witness point's classical acceleration, ``v_rel = v_p - v_o`` and
-  ``rho = d + r_o`` its distance to the obstacle's centre: the curvature of the point-to-centre
-  distance, the witness point taken as fixed on its link (its sliding along the capsule is
-  neglected; exact for the sphere caps).
+* drift (on request): ``d_ddot`` at ``q_ddot = 0`` with the obstacle moving at constant velocity
+  ``v_o``, exact for a capsule's cylinder and its caps alike: ``d = rho - r_arm - r_o`` with
+  ``rho = |m|`` the distance of the obstacle's centre ``c`` from the capsule's axis, ``m = P e``,
+  ``e = p - c``, ``P = I - u u^T`` on the cylinder (``u`` the axis direction, ``p`` the axis point
+  nearest to ``c``, taken as a point fixed on its link) and ``P = I`` at a cap (``p`` the cap's
+  centre). With ``u_dot = w x u`` and ``e_dot = v_p - v_o``, ``e_ddot = a_p`` (the point's
+  classical acceleration): ``m_dot = P e_dot - u (u_dot . e)``, ``n . m_ddot = n . a_p -
+  2 (n . u_dot)(u . e_dot + u_dot . e)`` (``u . e = 0`` and ``n . u = 0`` on the cylinder) and
+  ``d_ddot = (|m_dot|^2 - (n . m_dot)^2) / rho + n . m_ddot``, ``n = m / rho``
+  (``tests/methods/test_reactive.py`` checks it against second differences of coal's distances).
 
 Distances, normals and witness points come from one ``pin.computeDistances`` call over every
 pair (:meth:`~amex.control.collision.CollisionModel.proximities`).
@@ -34,8 +39,8 @@ import pinocchio as pin
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.core.types import require_finite
+from amex.methods.clearance_kernels import pair_terms
 from amex.robot import RobotModel
-from amex.robot.geometry import cross, skew
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
@@ -88,6 +93,7 @@ class ArmSensor:
         self.data = robot.model.createData()
         self._collision: CollisionModel | None = None
         self._radii: tuple[float, ...] = ()
+        self._axes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -152,32 +158,40 @@ class ArmSensor:
         k, n = len(found), robot.nv
         if not k:
             return ArmSnapshot(state, no_pairs(n))
-        distance, rate, accel = np.empty(k), np.empty(k), np.zeros(k)
-        gradient = np.empty((k, n))
-        obstacle = np.empty(k, dtype=int)
         model, data = robot.model, self.data
-        for i, prox in enumerate(found):
-            J = pin.getJointJacobian(model, data, prox.joint_id, _LWA)
-            r = prox.point - data.oMi[prox.joint_id].translation
-            J_point = J[:3] - skew(r) @ J[3:]
-            gradient[i] = prox.normal @ J_point
-            v_obstacle = velocity[prox.obstacle]
-            distance[i] = prox.distance
-            rate[i] = -float(prox.normal @ v_obstacle)
-            obstacle[i] = prox.obstacle
+        index: dict[int, int] = {}
+        rows = np.array([index.setdefault(p.joint_id, len(index)) for p in found], dtype=np.int64)
+        joints = list(index)
+        u = len(joints)
+        rotation, origin = np.empty((u, 3, 3)), np.empty((u, 3))
+        jacobian = np.empty((u, 6, n))
+        v_local, a_local = np.zeros((u, 6)), np.zeros((u, 6))
+        for m, j in enumerate(joints):
+            M = data.oMi[j]
+            rotation[m], origin[m] = M.rotation, M.translation
+            jacobian[m] = pin.getJointJacobian(model, data, j, _LWA)
             if drift:
-                accel[i] = self._drift(prox, r, v_obstacle, radii[prox.obstacle])
+                v_local[m], a_local[m] = data.v[j].vector, data.a[j].vector
+        normal = np.array([p.normal for p in found])
+        point = np.array([p.point for p in found])
+        distance = np.array([p.distance for p in found])
+        obstacle = np.array([p.obstacle for p in found], dtype=np.int64)
+        shapes = np.array([p.shape for p in found], dtype=np.int64)
+        offset, axis, half = self._shape_axes
+        gradient, rate, accel = np.empty((k, n)), np.empty(k), np.zeros(k)
+        pair_terms(rows, rotation, origin, jacobian, v_local, a_local, normal, point,
+                   centers[obstacle], velocity[obstacle], offset[shapes], axis[shapes],
+                   half[shapes], drift, gradient, rate, accel)  # fmt: skip
         return ArmSnapshot(state, PairTerms(distance, gradient, rate, accel, obstacle))
 
-    def _drift(self, prox, r: np.ndarray, v_obstacle: np.ndarray, radius: float) -> float:
-        """``d_ddot`` at ``q_ddot = 0`` of one pair (module notes)."""
-        model, data = self.robot.model, self.data
-        v = pin.getVelocity(model, data, prox.joint_id, _LWA)
-        a = pin.getClassicalAcceleration(model, data, prox.joint_id, _LWA)
-        w, alpha = v.angular, a.angular
-        v_point = v.linear + cross(w, r)
-        a_point = a.linear + cross(alpha, r) + cross(w, cross(w, r))
-        v_rel = v_point - v_obstacle
-        along = float(prox.normal @ v_rel)
-        rho = max(prox.distance + float(radius), 1e-9)
-        return float(prox.normal @ a_point) + (float(v_rel @ v_rel) - along * along) / rho
+    @property
+    def _shape_axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every arm capsule's axis centre and direction in its joint frame, and half length."""
+        if self._axes is None:
+            caps = self.robot.capsules
+            self._axes = (
+                np.array([c.placement.translation for c in caps]),
+                np.array([c.placement.rotation[:, 2] for c in caps]),
+                np.array([c.half_length for c in caps]),
+            )
+        return self._axes

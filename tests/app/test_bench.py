@@ -8,8 +8,8 @@ from amex.app.bench import main
 def test_bench_times_a_method_over_task3_episodes(capsys):
     main(["--steps-only", "--methods", "track", "--episodes", "2"])
     out = capsys.readouterr().out
-    assert "method track   outer step on Task 3 (2 env), median of" in out
-    assert "p95" in out
+    assert "method track     outer step on Task 3 (2 env), median of" in out
+    assert "p95" in out and "thread CPU median" in out
 
 
 def test_bench_refuses_zero_episodes(capsys):
