@@ -13,11 +13,16 @@ closer than an activation distance, the signed distance ``d`` (coal, through
 * rate: ``dd/dt`` at ``q_dot = 0`` from the obstacle's velocity ``v_o``, ``-n^T v_o``, where
   ``v_o`` is the finite difference of the perceived centres between two outer steps (0 at the
   first step and for static obstacles);
-* drift (on request): ``d_ddot`` at ``q_ddot = 0``, ``n^T a_p + (|v_rel|^2 - (n^T v_rel)^2) / rho``
-  with ``a_p`` the witness point's classical acceleration, ``v_rel = v_p - v_o`` and
-  ``rho = d + r_o`` its distance to the obstacle's centre: the curvature of the point-to-centre
-  distance, the witness point taken as fixed on its link (its sliding along the capsule is
-  neglected; exact for the sphere caps).
+* drift (on request): ``d_ddot`` at ``q_ddot = 0`` with the obstacle moving at constant velocity
+  ``v_o``, exact for a capsule's cylinder and its caps alike: ``d = rho - r_arm - r_o`` with
+  ``rho = |m|`` the distance of the obstacle's centre ``c`` from the capsule's axis, ``m = P e``,
+  ``e = p - c``, ``P = I - u u^T`` on the cylinder (``u`` the axis direction, ``p`` the axis point
+  nearest to ``c``, taken as a point fixed on its link) and ``P = I`` at a cap (``p`` the cap's
+  centre). With ``u_dot = w x u`` and ``e_dot = v_p - v_o``, ``e_ddot = a_p`` (the point's
+  classical acceleration): ``m_dot = P e_dot - u (u_dot . e)``, ``n . m_ddot = n . a_p -
+  2 (n . u_dot)(u . e_dot + u_dot . e)`` (``u . e = 0`` and ``n . u = 0`` on the cylinder) and
+  ``d_ddot = (|m_dot|^2 - (n . m_dot)^2) / rho + n . m_ddot``, ``n = m / rho``
+  (``tests/methods/test_reactive.py`` checks it against second differences of coal's distances).
 
 Distances, normals and witness points come from one ``pin.computeDistances`` call over every
 pair (:meth:`~amex.control.collision.CollisionModel.proximities`).
@@ -166,18 +171,40 @@ class ArmSensor:
             rate[i] = -float(prox.normal @ v_obstacle)
             obstacle[i] = prox.obstacle
             if drift:
-                accel[i] = self._drift(prox, r, v_obstacle, radii[prox.obstacle])
+                center = centers[prox.obstacle]
+                accel[i] = self._drift(prox, center, v_obstacle)
         return ArmSnapshot(state, PairTerms(distance, gradient, rate, accel, obstacle))
 
-    def _drift(self, prox, r: np.ndarray, v_obstacle: np.ndarray, radius: float) -> float:
+    def _drift(self, prox, center: np.ndarray, v_obstacle: np.ndarray) -> float:
         """``d_ddot`` at ``q_ddot = 0`` of one pair (module notes)."""
         model, data = self.robot.model, self.data
+        capsule = self.robot.capsules[prox.shape]
+        oMi = data.oMi[prox.joint_id]
+        R = oMi.rotation
+        axis_center = oMi.act(capsule.placement.translation)
+        u = R @ capsule.placement.rotation[:, 2]
+        s = float((center - axis_center) @ u)
+        on_cylinder = capsule.half_length > 0.0 and abs(s) < capsule.half_length
+        if not on_cylinder:
+            s = math.copysign(capsule.half_length, s)
+        p = axis_center + s * u
+        r = p - oMi.translation
         v = pin.getVelocity(model, data, prox.joint_id, _LWA)
         a = pin.getClassicalAcceleration(model, data, prox.joint_id, _LWA)
         w, alpha = v.angular, a.angular
         v_point = v.linear + cross(w, r)
         a_point = a.linear + cross(alpha, r) + cross(w, cross(w, r))
-        v_rel = v_point - v_obstacle
-        along = float(prox.normal @ v_rel)
-        rho = max(prox.distance + float(radius), 1e-9)
-        return float(prox.normal @ a_point) + (float(v_rel @ v_rel) - along * along) / rho
+        e, e_dot = p - center, v_point - v_obstacle
+        if on_cylinder:
+            e = e - float(e @ u) * u  # p is the nearest axis point: u . e = 0 up to rounding
+            u_dot = cross(w, u)
+            m_dot = e_dot - float(e_dot @ u) * u - float(u_dot @ e) * u
+        else:
+            m_dot = e_dot
+        rho = max(math.sqrt(float(e @ e)), 1e-12)
+        n = e / rho
+        along = float(n @ m_dot)
+        n_m_ddot = float(n @ a_point)
+        if on_cylinder:
+            n_m_ddot -= 2.0 * float(n @ u_dot) * (float(u @ e_dot) + float(u_dot @ e))
+        return (float(m_dot @ m_dot) - along * along) / rho + n_m_ddot
