@@ -256,3 +256,28 @@ def test_seeds_pool_only_with_equal_code_and_configuration():
     assert not unit(0).joins(unit(1, code="d"))  # other code
     assert not unit(0, code="").joins(unit(1, code=""))  # rows without a code hash
     assert not unit(0, key=None).joins(unit(1, key=None))  # no recorded configuration
+
+
+def test_mppi_sits_beside_cr_with_its_compute_tail_and_budget_stops(tmp_path):
+    """Real CR and MPPI runs: CR, then MPPI; CPU p95, max, deadline misses and budget stops."""
+    import pandas as pd
+
+    from analysis.table import TAIL_COLUMNS, aggregate, combined, paper_table
+
+    root = tmp_path / "runs"
+    for name in ("mppi", "cr", "amex"):  # in no particular order
+        config = RunConfig(task=1, episodes=2, max_time=3.0)
+        config.method = METHODS[name].config_class()
+        run(config, root / f"task1_{name}")
+    assert main([str(root), "--out", str(tmp_path / "out")]) == 0
+    md = (tmp_path / "out" / "fig5.md").read_text()
+    rows = [line for line in md.splitlines() if line.startswith("| 1 | ")]
+    assert [r.split(" | ")[1] for r in rows[:3]] == ["amex", "cr", "mppi"]
+    assert all(c in md for c in TAIL_COLUMNS)
+    assert "| 1 | cr | mppi | final_time |" in md  # paired on the same environments
+    frames = [pd.read_csv(p, keep_default_na=False) for p in root.glob("*/episodes.csv")]
+    table = combined(aggregate(pd.concat(frames)), paper_table()).set_index("method")
+    assert table.loc["mppi", "budget stops"] != "" and table.loc["cr", "budget stops"] == ""
+    assert float(table.loc["mppi", "compute CPU max [s]"]) >= float(
+        table.loc["mppi", "compute CPU p95 [s]"]
+    )
