@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-kernels test-viewer test-live render-deps lint bench table figure-runs figures studies paper ablation ablation-table clean
+.PHONY: install run test test-slow test-kernels test-viewer test-live render-deps lint bench table figure-runs figures studies paper ablation ablation-table baselines clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -124,6 +124,15 @@ PAPER_DIR ?= runs/paper$(if $(EXPERIMENT),_$(EXPERIMENT))
 paper: $(STAMP)
 	$(BIN)/amex-run -m $(if $(EXPERIMENT),experiment=$(EXPERIMENT)) task=1,2,3,4 method=amex,dmp,cr $(if $(SHARDS),shards=$(SHARDS)) hydra.sweep.dir=$(PAPER_DIR)
 	$(BIN)/python -m analysis.table $(PAPER_DIR)
+
+## AMEX against today's reactive methods (issue #26, conf/study/baselines.yaml): every method on
+## Tasks 1-4, the Panda at 150 environments, the UR5 and chain7 at 30, one run per (method, robot,
+## task) under runs/baselines (resumes; METHOD=<name> runs only that method's runs), then the tables
+## into analysis/out/ (docs: the runs committed under docs/data/runs/baselines, make docs-tables).
+METHOD ?=
+baselines: $(STAMP)
+	$(BIN)/amex-run -m study=baselines $(if $(METHOD),method=$(METHOD))
+	$(BIN)/python -m analysis.baselines runs/baselines
 
 ## From the authors' setup to ours one factor at a time (conf/experiment/ablation/): step 0 is
 ## `make paper EXPERIMENT=original` (runs/paper_original), steps 1-4 go to runs/ablation/, step 5

@@ -39,8 +39,8 @@ import pinocchio as pin
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.core.types import require_finite
+from amex.methods.clearance_kernels import pair_terms
 from amex.robot import RobotModel
-from amex.robot.geometry import cross, skew
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
@@ -93,6 +93,7 @@ class ArmSensor:
         self.data = robot.model.createData()
         self._collision: CollisionModel | None = None
         self._radii: tuple[float, ...] = ()
+        self._axes: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self.reset()
 
     def reset(self) -> None:
@@ -157,54 +158,40 @@ class ArmSensor:
         k, n = len(found), robot.nv
         if not k:
             return ArmSnapshot(state, no_pairs(n))
-        distance, rate, accel = np.empty(k), np.empty(k), np.zeros(k)
-        gradient = np.empty((k, n))
-        obstacle = np.empty(k, dtype=int)
         model, data = robot.model, self.data
-        for i, prox in enumerate(found):
-            J = pin.getJointJacobian(model, data, prox.joint_id, _LWA)
-            r = prox.point - data.oMi[prox.joint_id].translation
-            J_point = J[:3] - skew(r) @ J[3:]
-            gradient[i] = prox.normal @ J_point
-            v_obstacle = velocity[prox.obstacle]
-            distance[i] = prox.distance
-            rate[i] = -float(prox.normal @ v_obstacle)
-            obstacle[i] = prox.obstacle
+        index: dict[int, int] = {}
+        rows = np.array([index.setdefault(p.joint_id, len(index)) for p in found], dtype=np.int64)
+        joints = list(index)
+        u = len(joints)
+        rotation, origin = np.empty((u, 3, 3)), np.empty((u, 3))
+        jacobian = np.empty((u, 6, n))
+        v_local, a_local = np.zeros((u, 6)), np.zeros((u, 6))
+        for m, j in enumerate(joints):
+            M = data.oMi[j]
+            rotation[m], origin[m] = M.rotation, M.translation
+            jacobian[m] = pin.getJointJacobian(model, data, j, _LWA)
             if drift:
-                center = centers[prox.obstacle]
-                accel[i] = self._drift(prox, center, v_obstacle)
+                v_local[m], a_local[m] = data.v[j].vector, data.a[j].vector
+        normal = np.array([p.normal for p in found])
+        point = np.array([p.point for p in found])
+        distance = np.array([p.distance for p in found])
+        obstacle = np.array([p.obstacle for p in found], dtype=np.int64)
+        shapes = np.array([p.shape for p in found], dtype=np.int64)
+        offset, axis, half = self._shape_axes
+        gradient, rate, accel = np.empty((k, n)), np.empty(k), np.zeros(k)
+        pair_terms(rows, rotation, origin, jacobian, v_local, a_local, normal, point,
+                   centers[obstacle], velocity[obstacle], offset[shapes], axis[shapes],
+                   half[shapes], drift, gradient, rate, accel)  # fmt: skip
         return ArmSnapshot(state, PairTerms(distance, gradient, rate, accel, obstacle))
 
-    def _drift(self, prox, center: np.ndarray, v_obstacle: np.ndarray) -> float:
-        """``d_ddot`` at ``q_ddot = 0`` of one pair (module notes)."""
-        model, data = self.robot.model, self.data
-        capsule = self.robot.capsules[prox.shape]
-        oMi = data.oMi[prox.joint_id]
-        R = oMi.rotation
-        axis_center = oMi.act(capsule.placement.translation)
-        u = R @ capsule.placement.rotation[:, 2]
-        s = float((center - axis_center) @ u)
-        on_cylinder = capsule.half_length > 0.0 and abs(s) < capsule.half_length
-        if not on_cylinder:
-            s = math.copysign(capsule.half_length, s)
-        p = axis_center + s * u
-        r = p - oMi.translation
-        v = pin.getVelocity(model, data, prox.joint_id, _LWA)
-        a = pin.getClassicalAcceleration(model, data, prox.joint_id, _LWA)
-        w, alpha = v.angular, a.angular
-        v_point = v.linear + cross(w, r)
-        a_point = a.linear + cross(alpha, r) + cross(w, cross(w, r))
-        e, e_dot = p - center, v_point - v_obstacle
-        if on_cylinder:
-            e = e - float(e @ u) * u  # p is the nearest axis point: u . e = 0 up to rounding
-            u_dot = cross(w, u)
-            m_dot = e_dot - float(e_dot @ u) * u - float(u_dot @ e) * u
-        else:
-            m_dot = e_dot
-        rho = max(math.sqrt(float(e @ e)), 1e-12)
-        n = e / rho
-        along = float(n @ m_dot)
-        n_m_ddot = float(n @ a_point)
-        if on_cylinder:
-            n_m_ddot -= 2.0 * float(n @ u_dot) * (float(u @ e_dot) + float(u_dot @ e))
-        return (float(m_dot @ m_dot) - along * along) / rho + n_m_ddot
+    @property
+    def _shape_axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every arm capsule's axis centre and direction in its joint frame, and half length."""
+        if self._axes is None:
+            caps = self.robot.capsules
+            self._axes = (
+                np.array([c.placement.translation for c in caps]),
+                np.array([c.placement.rotation[:, 2] for c in caps]),
+                np.array([c.half_length for c in caps]),
+            )
+        return self._axes

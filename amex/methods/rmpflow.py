@@ -7,9 +7,11 @@ Each outer step, at the measured ``(q, q_dot)``, every leaf i on its task space 
 
     f = sum_i J_i^T M_i (a_i - J_dot_i q_dot),   M = sum_i J_i^T M_i J_i,   q_ddot = M^+ f
 
-with the pseudo-inverse ``M^+``. The leaves: the TCP position's goal attractor (``x = p_tcp``,
-Pinocchio's frame Jacobian and classical acceleration), the TCP axis attractor (``x = z``,
-``J = -[z]x J_w``), one obstacle leaf per arm-capsule/obstacle pair within ``obstacle_radius``
+with the pseudo-inverse ``M^+`` (``M^-1`` by Cholesky: the damping leaf's constant metric
+makes M positive definite; the pseudo-inverse only if the factorization fails). The leaves: the
+TCP position's goal attractor (``x = p_tcp``, Pinocchio's frame Jacobian and classical
+acceleration), the TCP axis attractor (``x = z``, ``J = -[z]x J_w``), one obstacle leaf per
+arm-capsule/obstacle pair within ``obstacle_radius``
 (``x = d``, coal distances, :mod:`amex.methods.clearance`), two joint-limit leaves per joint
 (``x = q_hi - b - q`` and ``q - q_lo - b``), the default configuration (``x = q - q0``) and the
 joint-velocity damping (``x = q``).
@@ -30,6 +32,7 @@ import numpy as np
 
 from amex.core.scaling import scaled
 from amex.core.types import Command, Observation
+from amex.methods import rmpflow_kernels as kernels
 from amex.methods import rmpflow_leaves as leaves
 from amex.methods.base import Method, MethodConfig, invalid
 from amex.methods.clearance import ArmSensor, ArmSnapshot
@@ -211,12 +214,40 @@ class RMPflow(Method):
         self._limit = (c.limit_metric, c.limit_metric_length, c.limit_metric_eps,
                        c.limit_velocity_gate, c.limit_damping, c.limit_gain, c.limit_gain_length,
                        c.limit_gain_eps)  # fmt: skip
+        self._params = tuple(np.array(p, dtype=float) for p in (
+            self._goal, (c.axis_gain, c.axis_damping, c.axis_metric), self._obstacle,
+            self._limit, (c.posture_gain, c.posture_damping, c.posture_limit, c.posture_metric),
+            (c.damping_gain, c.damping_metric, c.damping_inertia)))  # fmt: skip
         self._last: Resolved | None = None
         self._pairs = 0
 
     # ----------------------------------------------------------------------------- policy
     def resolve(self, snap: ArmSnapshot, goal: np.ndarray) -> Resolved:
-        """Pull every leaf back to the joint space and resolve (module notes).
+        """Pull every leaf back to the joint space and resolve (module notes), compiled.
+
+        The same formulas as :meth:`resolve_leaves` in one call
+        (:func:`amex.methods.rmpflow_kernels.resolve`); the pseudo-inverse if the Cholesky
+        factorization of the metric fails.
+
+        Args:
+            snap: the arm at the measured state (pairs within ``obstacle_radius``, with drift).
+            goal: TCP goal position and axis, shape (6,).
+        """
+        state, pairs = snap.state, snap.pairs
+        n = len(state.q)
+        A, b, qdd = np.empty((n, n)), np.empty(n), np.empty(n)
+        ok = kernels.resolve(state.J, state.y, state.acc_drift, state.q, state.v,
+                             np.asarray(goal, dtype=float), self.q_lo, self.q_hi, self.q_rest,
+                             pairs.distance, pairs.gradient, pairs.rate, pairs.drift,
+                             *self._params, A, b, qdd)  # type: ignore[call-arg]  # fmt: skip
+        if not ok:
+            qdd = np.linalg.pinv(A, rcond=self.config.rcond, hermitian=True) @ b
+        return Resolved(qdd, A, b)
+
+    def resolve_leaves(self, snap: ArmSnapshot, goal: np.ndarray) -> Resolved:
+        """Pull every leaf back to the joint space and resolve (module notes), leaf by leaf.
+
+        The readable form (:mod:`amex.methods.rmpflow_leaves`) that :meth:`resolve` compiles.
 
         Args:
             snap: the arm at the measured state (pairs within ``obstacle_radius``, with drift).
@@ -263,7 +294,11 @@ class RMPflow(Method):
         force = force + rest.metric * rest.accel + damp.metric * damp.accel
         A[np.diag_indices(n)] += diag
         b += force
-        qdd = np.linalg.pinv(A, rcond=c.rcond, hermitian=True) @ b
+        try:  # M is positive definite (the damping leaf's inertia): M^+ = M^-1, by Cholesky
+            L = np.linalg.cholesky(A)
+            qdd = np.linalg.solve(L.T, np.linalg.solve(L, b))
+        except np.linalg.LinAlgError:
+            qdd = np.linalg.pinv(A, rcond=c.rcond, hermitian=True) @ b
         return Resolved(qdd, A, b)
 
     # ----------------------------------------------------------------------------- Method

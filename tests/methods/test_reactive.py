@@ -167,12 +167,16 @@ def test_the_resolved_rmp_is_the_pullback_of_every_leaf(robot):
     snap = method.sensor.measure(0.0, q, qd, centers, radii, method.config.obstacle_radius,
                                  drift=True)  # fmt: skip
     goal = robot.task_position(robot.q0) + [0.05, 0.0, 0.02, 0.0, 0.0, 0.0]
-    out = method.resolve(snap, goal)
+    out = method.resolve_leaves(snap, goal)
+    compiled = method.resolve(snap, goal)  # the kernel computes the same leaves
+    np.testing.assert_allclose(compiled.metric, out.metric, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(compiled.force, out.force, rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(compiled.qdd, out.qdd, rtol=1e-8, atol=1e-9)
     np.testing.assert_allclose(out.metric, out.metric.T, atol=1e-12)
     assert np.linalg.eigvalsh(out.metric).min() > 0.0  # the damping leaf's inertia
     np.testing.assert_allclose(out.metric @ out.qdd, out.force, rtol=1e-8, atol=1e-10)
     # without the obstacle its leaves' share is gone: the pullback of the pairs is additive
-    bare = method.resolve(snap._replace(pairs=snap.pairs._replace(
+    bare = method.resolve_leaves(snap._replace(pairs=snap.pairs._replace(
         distance=snap.pairs.distance[:0], gradient=snap.pairs.gradient[:0],
         rate=snap.pairs.rate[:0], drift=snap.pairs.drift[:0])), goal)  # fmt: skip
     G = snap.pairs.gradient
@@ -180,8 +184,9 @@ def test_the_resolved_rmp_is_the_pullback_of_every_leaf(robot):
                                     *method._obstacle)  # fmt: skip
     np.testing.assert_allclose(out.metric - bare.metric, G.T @ (rmp.metric[:, None] * G),
                                atol=1e-9)  # fmt: skip
-    np.testing.assert_allclose(out.force - bare.force,
-                               G.T @ (rmp.metric * (rmp.accel - snap.pairs.drift)), atol=1e-9)
+    np.testing.assert_allclose(
+        out.force - bare.force, G.T @ (rmp.metric * (rmp.accel - snap.pairs.drift)), atol=1e-9
+    )
 
 
 def test_the_obstacle_leaf_pushes_away_and_its_metric_vanishes_at_the_radius():
@@ -370,3 +375,31 @@ def test_short_episodes_of_every_task_reach_the_goal_without_contact(context, na
     assert result.success and not result.failure and not result.collided, (name, task)
     if task >= 3:
         assert result.min_clearance > 0.0
+
+
+# ----------------------------------------------------------------------------- the study
+def _study_jobs(*arguments: str) -> list[list[str]]:
+    from amex.app.checks import sweep_settings
+    from amex.app.sweeps import sweep_jobs
+
+    params, grids, shards, _ = sweep_settings(["study=baselines", *arguments], [])
+    return sweep_jobs(params, grids, ["study=baselines", *arguments], shards)
+
+
+def _cell(job: list[str]) -> tuple[str, str, str]:
+    values = dict(o.split("=", 1) for o in job)
+    return values["method"], values["robot"], values["task"]
+
+
+def test_the_study_runs_every_method_robot_and_task_once_in_its_own_directory():
+    jobs = _study_jobs()
+    cells = [_cell(job) for job in jobs]
+    assert len(cells) == len(set(cells)) == 8 * 3 * 4
+    episodes = {_cell(j)[1]: dict(o.split("=", 1) for o in j)["episodes"] for j in jobs}
+    assert episodes == {"panda": "150", "ur5": "30", "chain7": "30"}
+
+
+def test_one_method_of_the_study_runs_only_its_own_cells():
+    cells = [_cell(job) for job in _study_jobs("method=mppi")]
+    assert len(cells) == 12 and {m for m, _, _ in cells} == {"mppi"}
+    assert set(cells) <= {_cell(job) for job in _study_jobs()}
