@@ -16,7 +16,7 @@ from collections.abc import Sequence
 import numpy as np
 import pandas as pd
 
-METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "track")
+METHOD_ORDER = ("amex", "dmp", "dmp_ps", "cr", "mppi", "track")
 PAIRED_METRICS = ("success", "final_time", "sum_sq_acc", "sum_sq_acc_paper", "sum_sq_acc_t3")
 BOOLEAN_METRICS = ("success", "success_005", "collided")  # paired by McNemar's test
 #: The metrics :func:`paired_stats` compares by default (the studies' cells).

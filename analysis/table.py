@@ -122,6 +122,23 @@ def std_ddof(g: pd.DataFrame) -> int:
     return values.pop()
 
 
+def _column(g: pd.DataFrame, name: str, how: str) -> float:
+    """``how`` (median, max, mean) of column ``name`` over the episodes; NaN if none has it."""
+    if name not in g:
+        return math.nan
+    values = pd.to_numeric(g[name], errors="coerce").dropna()
+    return float(getattr(values, how)()) if len(values) else math.nan
+
+
+#: The columns of the compute tail, shown only when some run records them (:func:`combined`).
+TAIL_COLUMNS = (
+    "compute CPU p95 [s]",
+    "compute CPU max [s]",
+    "deadline misses",
+    "budget stops",
+)
+
+
 def aggregate(df: pd.DataFrame) -> pd.DataFrame:
     """Fig. 5 per (task, method): means and 2 std (:mod:`amex.sim.metrics`).
 
@@ -160,6 +177,11 @@ def aggregate(df: pd.DataFrame) -> pd.DataFrame:
                 "compute_cpu_median": float(g.compute_cpu_median.median())
                 if "compute_cpu_median" in g
                 else math.nan,
+                # the tail of the steps' CPU times, in runs that record it (older runs: NaN)
+                "compute_cpu_p95": _column(g, "compute_cpu_p95", "median"),
+                "compute_cpu_max": _column(g, "compute_cpu_max", "max"),
+                "deadline_misses": _column(g, "deadline_misses", "mean"),
+                "budget_stops": _column(g, "budget_stops", "mean"),
             }
         )
     out = pd.DataFrame.from_records(records)
@@ -210,9 +232,20 @@ def combined(ours: pd.DataFrame, paper: pd.DataFrame) -> pd.DataFrame:
                 if math.isnan(r.compute_cpu_median)
                 else f"{r.compute_cpu_median:.2e}",
                 "sum sq. acc. x T^3 (median)": f"{r.sum_sq_acc_t3_median:.2e}",
+                TAIL_COLUMNS[0]: _fmt(r.compute_cpu_p95, ".2e"),
+                TAIL_COLUMNS[1]: _fmt(r.compute_cpu_max, ".2e"),
+                TAIL_COLUMNS[2]: _fmt(r.deadline_misses, ".4f"),
+                TAIL_COLUMNS[3]: _fmt(r.budget_stops, ".4f"),
             }
         )
-    return pd.DataFrame.from_records(rows)
+    out = pd.DataFrame.from_records(rows)
+    if len(out) and not (out[TAIL_COLUMNS[0]] != "").any():  # runs from before the tail
+        out = out.drop(columns=list(TAIL_COLUMNS))
+    return out
+
+
+def _fmt(value: float, fmt: str) -> str:
+    return "" if math.isnan(value) else f"{value:{fmt}}"
 
 
 def render_markdown(

@@ -8,7 +8,9 @@
 * each registered method's own outer step (``Method.step``), median, mean and p95 over the
   steps of Task-3 episodes (``--episodes N`` environments, default 1; ``--methods`` a subset),
   in wall time and in thread CPU time (``time.thread_time_ns``; the reactive methods' targets,
-  issue #26: rmpflow, cbf_ik, amex_cbf <= 0.5 ms, dmp_avoid <= 0.1 ms, beside AMEX's).
+  issue #26: rmpflow, cbf_ik, amex_cbf <= 0.5 ms, dmp_avoid <= 0.1 ms, beside AMEX's);
+* the replanners' outer step (CR and MPPI) on ``--tasks`` (default 1-4): median, p95 and max of
+  its thread CPU time (what ``deadline_misses`` counts) and the fraction over the 10 ms period.
 
 Timings use ``time.perf_counter_ns``; nothing here asserts a time (tests never time things).
 """
@@ -114,36 +116,43 @@ def bench_plan(config: RunConfig, repeats: int = 3) -> tuple[list[float], list[f
 
 
 def bench_method_steps(
-    name: str, task: int = 3, envs: range = range(1), cpu: list[float] | None = None
-) -> list[float]:
-    """Per-step wall times [s] of ``name``'s outer step over the episodes ``envs`` of ``task``.
+    name: str, task: int = 3, envs: range = range(1)
+) -> tuple[list[float], list[float]]:
+    """Per-step wall and thread CPU times [s] of the outer step of ``name`` on ``envs`` of ``task``.
 
-    The method runs with its configuration in the scene's units, as in a run
-    (:meth:`RunConfig.method_config`). ``cpu``, if given, receives each step's thread CPU time.
+    The method as a run builds it: ``conf/method/<name>.yaml`` composed, lengths in the scene's
+    units (:func:`amex.experiment.runner.setup`); seed 0.
     """
+    from amex.app.compose import load_config
+    from amex.experiment.runner import setup
     from amex.sim.episode import run_episode
 
-    config = _config(name, task)
-    context = prepare(config)
-    method = METHODS[name](context.plan, config.method_config(), 0.01, context.robot)
-    times: list[float] = []
+    config = load_config([f"method={name}", f"task={task}"])
+    run = setup(config, prepare(config))
+    context = run.context
+    method = run.method(context.plan, run.params, run.outer_dt, context.robot)
+    walls: list[float] = []
+    cpus: list[float] = []
     original = method.step
 
     def timed(obs):  # same measurement as the episode loop, kept per step
-        tic, cpu_tic = time.perf_counter_ns(), time.thread_time_ns()
+        tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
         out = original(obs)
-        if cpu is not None:
-            cpu.append((time.thread_time_ns() - cpu_tic) * 1e-9)
-        times.append((time.perf_counter_ns() - tic) * 1e-9)
+        cpus.append((time.thread_time_ns() - cpu) * 1e-9)
+        walls.append((time.perf_counter_ns() - tic) * 1e-9)
         return out
 
     method.step = timed  # type: ignore[method-assign]
     for env in envs:
         scenario = make_scenario(
-            config.scene(), task, config.seed, env, context.plan.y[0, :3], context.plan.duration
+            run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
         )
-        run_episode(context.robot, method, scenario, config.gains(), config.loop)
-    return times
+        run_episode(context.robot, method, scenario, run.gains, run.loop)
+    return walls, cpus
+
+
+#: The replanners whose outer step is timed on every task (issue #27: MPPI beside CR).
+REPLANNERS = ("cr", "mppi")
 
 
 def _us(x: float | np.floating) -> str:
@@ -161,20 +170,38 @@ def main(argv: list[str] | None = None) -> None:
         "--methods", nargs="*", choices=sorted(METHODS), help="methods to time (default: all)"
     )
     parser.add_argument("--steps-only", action="store_true", help="only the methods' outer steps")
+    parser.add_argument(
+        "--tasks",
+        type=int,
+        nargs="*",
+        choices=range(5),
+        default=[1, 2, 3, 4],
+        help=f"tasks on which the replanners ({', '.join(REPLANNERS)}) are timed on CPU time",
+    )
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes {args.episodes}: valid: an integer >= 1")
     if not args.steps_only:
         _print_platform(args.quick)
     for name in args.methods or sorted(METHODS):
-        cpu: list[float] = []
-        steps = bench_method_steps(name, envs=range(args.episodes), cpu=cpu)
+        steps, cpu = bench_method_steps(name, envs=range(args.episodes))
         p95 = float(np.percentile(steps, 95))
         print(
             f"method {name:<9} outer step on Task 3 ({args.episodes} env), median of "
             f"{len(steps)}: {_us(np.median(steps))}  (mean {_us(np.mean(steps))}, p95 {_us(p95)});"
             f" thread CPU median {_us(np.median(cpu))}, p95 {_us(np.percentile(cpu, 95))}"
         )
+    replanners = [m for m in REPLANNERS if m in (args.methods or REPLANNERS)]
+    for name in replanners:
+        for task in args.tasks:
+            walls, cpus = bench_method_steps(name, task, envs=range(args.episodes))
+            times, period = np.asarray(cpus), 0.01
+            print(
+                f"method {name:<9} Task {task} ({args.episodes} env, {len(times)} steps), thread "
+                f"CPU: median {_us(np.median(times))}, p95 {_us(np.percentile(times, 95))}, max "
+                f"{_us(times.max())}; wall median {_us(np.median(walls))}; over 10 ms:"
+                f" {np.mean(times > period):.4f}"
+            )
 
 
 def _print_platform(quick: bool) -> None:

@@ -17,8 +17,12 @@ warm start itself. The command is the nominal's motion over the coming period, a
 
 Time budget: the rollouts run in chunks of ``chunk`` samples; before each chunk the step checks
 its own elapsed time (thread CPU time, or wall time) against ``budget`` and stops early when the
-next chunk would not fit, updating from the samples evaluated so far (none: the warm start is
-sent as it is). Early stops are counted (:attr:`MPPI.early_stops`, and in :meth:`internals`).
+next chunk would not fit (the estimate: the median chunk time of the last step plus the median
+time after the rollouts of the last nine steps, both kept across episodes), updating from the
+samples evaluated so far (none: the warm start is sent as it is). Early stops are counted
+(:attr:`MPPI.early_stops`, in :meth:`internals` and as ``budget_stops`` in episodes.csv). A step
+the budget cuts short depends on the machine's speed: an episode is reproducible bit for bit
+when its ``budget_stops`` is 0, and says so when it is not.
 
 Seeding: the noise of step k is drawn from ``SeedSequence([seed, MPPI_STREAM, k, h(obs)])``,
 ``h`` a 128-bit digest of the observation, which the episode's seed, task and environment
@@ -102,13 +106,13 @@ class MPPIConfig(MethodConfig):
     control_every: int = 2  # [knots]
     noise: float = 0.5  # [rad/s^2]
     temperature: float = 0.05  # [-]
-    goal_position: float = 300.0  # [1/(m s)]
+    goal_position: float = 100.0  # [1/(m s)]
     goal_axis: float = 10.0  # [1/s]
     final_position: float = 10000.0  # [1/m^2]
     final_axis: float = 400.0  # [-]
     final_velocity: float = 10.0  # [s^2/rad^2]
     velocity: float = 0.1  # [s/rad^2]
-    acceleration: float = 0.1  # [s^3/rad^2]
+    acceleration: float = 1.0  # [s^3/rad^2]
     collision: float = 100.0  # [1/s]
     collision_margin: float = field(default=0.1, metadata=scaled(1))  # [m] original (CR's)
     joint_limits: float = 100.0  # [1/(rad^2 s)]
@@ -286,22 +290,30 @@ class MPPI(Method):
         self.reference_acc = np.gradient(np.gradient(plan.q, plan.dt, axis=0), plan.dt, axis=0)
         self.reference_dt = float(plan.dt)
         self.seed(int(c.seed))
+        # the time estimates are the machine's, not the episode's: kept across restarts, so that
+        # an episode's first step is budgeted too (from the warm-up's chunks at first)
+        self._chunk_time = 0  # [ns] typical duration of a chunk (the next one's estimate)
+        self._tails: deque[int] = deque(maxlen=9)  # [ns] the last steps' times after rollouts
+        self._tail_time = 0  # [ns] their median, the next step's estimate
         self.restart()
         self._warm_up(robot.q0)
 
     def _warm_up(self, q0: np.ndarray) -> None:
-        """One untimed step on a made-up observation, then :meth:`restart`.
+        """Two untimed steps on a made-up observation, then :meth:`restart`.
 
         Loads the compiled kernel and lets numpy and the generator take their first-call costs
-        here, never in a timed step (where they could stop the first step early).
+        here, never in a timed step (where they could stop the first step early); the second
+        step's times are the first estimates of the budget.
         """
         tcp = self.kinematics.frame_positions(q0[None], self.robot.tcp_frame_id)[0]
         y = np.concatenate([tcp, [0.0, 0.0, 1.0]])
         obs = Observation(0.0, q0, np.zeros_like(q0), y, np.zeros(6), y + 0.1,
                           tcp[None] + 0.1, np.array([0.05]))  # fmt: skip
-        self.sample(obs)
+        self.sample(obs, budgeted=False)
         self.target(obs.q, obs.qd)
         self.nominal_path()
+        self._tails.clear()  # the first call's times are not a step's: measured again
+        self.sample(obs, budgeted=False)
         self.restart()
 
     # ----------------------------------------------------------------------------- state
@@ -322,9 +334,6 @@ class MPPI(Method):
         self.t_controls = 0.0
         self.steps_done = 0
         self.early_stops = 0
-        self._chunk_time = 0  # [ns] typical duration of a chunk (the next one's estimate)
-        self._tails: deque[int] = deque(maxlen=9)  # [ns] the last steps' times after rollouts
-        self._tail_time = 0  # [ns] their median, the next step's estimate
         self._start = (np.zeros(0), np.zeros(0))
         self._status = MPPIStatus(0, False, math.nan, math.nan, 0.0, 0.0)
 
@@ -338,8 +347,11 @@ class MPPI(Method):
         words = [*self._seed_words, MPPI_STREAM, self.steps_done, *observation_words(obs)]
         return np.random.Generator(np.random.PCG64(np.random.SeedSequence(words)))
 
-    def sample(self, obs: Observation) -> MPPIStatus:
+    def sample(self, obs: Observation, budgeted: bool = True) -> MPPIStatus:
         """Shift the warm start, roll out the samples within the budget, update the nominal.
+
+        ``budgeted=False`` evaluates every sample whatever the time (the warm-up's steps); the
+        times are measured all the same.
 
         Python's cyclic garbage collector is held off during the step (and restored as it was):
         a full collection costs milliseconds of the step's own thread time, at moments that
@@ -355,12 +367,12 @@ class MPPI(Method):
         collecting = gc.isenabled()
         gc.disable()
         try:
-            return self._sample(obs)
+            return self._sample(obs, budgeted)
         finally:
             if collecting:
                 gc.enable()
 
-    def _sample(self, obs: Observation) -> MPPIStatus:
+    def _sample(self, obs: Observation, budgeted: bool) -> MPPIStatus:
         c, clock = self.config, self.clock
         start = clock()
         shift = (obs.t - self.t_controls) / self.control_dt
@@ -377,7 +389,7 @@ class MPPI(Method):
         evaluated, early, chunk_times = 0, False, []
         while evaluated < K:
             now = clock()
-            if now - start + self._chunk_time + self._tail_time > budget:
+            if budgeted and now - start + self._chunk_time + self._tail_time > budget:
                 early = True
                 break
             size = min(int(c.chunk), K - evaluated)
@@ -409,6 +421,8 @@ class MPPI(Method):
         # does not make the next step stop early
         if chunk_times:
             self._chunk_time = int(np.median(chunk_times))
+        else:  # no chunk fitted: trust the estimate less, or one slow chunk would stop all
+            self._chunk_time //= 2
         self._tails.append(end - tail)
         self._tail_time = int(np.median(self._tails))
         self._status = status._replace(elapsed=(end - start) * 1e-9)

@@ -96,6 +96,8 @@ class _Episode:
                 k, k == self.n_steps, self.method.finished, loop.max_time, self.dt
             )
             final_time = samples * self.dt
+        stops = getattr(self.method, "early_stops", None)  # a method with a time budget
+        budget_stops = stops / len(cpu) if isinstance(stops, int) and cpu else math.nan
         fidelity = math.nan
         if self.reference_path is not None and len(trace.tcp):
             fidelity = plan_fidelity(np.array(trace.tcp), self.reference_path, goal_end)
@@ -124,6 +126,9 @@ class _Episode:
             final_axis_error=axis_error(trace.axis, scenario.goal_axis),
             path_length=trace.path_length,
             plan_fidelity=fidelity,
+            compute_cpu_p95=float(np.percentile(cpu, 95)) if cpu else math.nan,
+            compute_cpu_max=float(np.max(cpu)) if cpu else math.nan,
+            budget_stops=budget_stops,
         )
 
 

@@ -27,6 +27,10 @@
   step costs, whatever else the machine does (compute claims are judged on it).
 * ``deadline_misses``: the fraction of outer steps whose thread CPU time exceeded the outer
   period ``1 / outer_hz`` [-].
+* ``compute_cpu_p95`` / ``compute_cpu_max``: the 95th percentile and the maximum of the outer
+  steps' thread CPU times [s] (the tail a deadline sees).
+* ``budget_stops``: the fraction of outer steps a method with a time budget cut short on it
+  (its ``early_stops`` count over the steps, e.g. MPPI's; NaN for a method without a budget) [-].
 * ``min_clearance``: the smallest arm-obstacle distance at the outer steps [m] (negative:
   penetration; NaN in a scene without obstacles).
 * ``final_axis_error``: the angle between the TCP z-axis and the goal axis at the end [rad].
@@ -83,6 +87,9 @@ class EpisodeResult:
     final_axis_error: float = math.nan
     path_length: float = math.nan
     plan_fidelity: float = math.nan
+    compute_cpu_p95: float = math.nan
+    compute_cpu_max: float = math.nan
+    budget_stops: float = math.nan
 
     def as_row(self) -> dict[str, Any]:
         """The row as a dict in column order."""
@@ -99,6 +106,9 @@ TIMING_COLUMNS = (
     "compute_cpu_median",
     "compute_cpu_mean",
     "deadline_misses",
+    "compute_cpu_p95",
+    "compute_cpu_max",
+    "budget_stops",
 )
 #: The metrics aggregated as mean and 2 std (Fig. 5's columns plus ours).
 AGGREGATED = (
@@ -115,6 +125,9 @@ AGGREGATED = (
     "compute_cpu_median",
     "compute_cpu_mean",
     "deadline_misses",
+    "compute_cpu_p95",
+    "compute_cpu_max",
+    "budget_stops",
     "min_clearance",
     "final_axis_error",
     "path_length",

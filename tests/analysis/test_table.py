@@ -291,3 +291,30 @@ def test_2_std_divides_by_n_minus_the_std_ddof_the_runs_recorded(runs, tmp_path)
         assert row.std_ddof == ddof and row.final_time_2std == 2 * ft.std(ddof=ddof)
     with pytest.raises(TableError, match="different std_ddof"):
         aggregate(pd.concat(cells.values()))  # one cell from runs of both conventions
+
+
+def test_mppi_sits_beside_cr_with_its_compute_tail_and_budget_stops(tmp_path):
+    """Real CR and MPPI runs: CR, then MPPI; CPU p95, max, deadline misses and budget stops."""
+    from analysis.table import TAIL_COLUMNS
+
+    root = tmp_path / "runs"
+    for name in ("mppi", "cr", "amex"):  # in no particular order
+        config = RunConfig(task=1, episodes=2, max_time=3.0)
+        config.method = METHODS[name].config_class()
+        run(config, root / f"task1_{name}")
+    assert main([str(root), "--out", str(tmp_path / "out")]) == 0
+    md = (tmp_path / "out" / "fig5.md").read_text()
+    rows = [line for line in md.splitlines() if line.startswith("| 1 | ")]
+    assert [r.split(" | ")[1] for r in rows[:3]] == ["amex", "cr", "mppi"]
+    assert all(c in md for c in TAIL_COLUMNS)
+    assert "| 1 | cr | mppi | final_time |" in md  # paired on the same environments
+    lines = md.splitlines()
+    header = next(x for x in lines if x.startswith("| task | method | n |"))
+    cells = [c.strip() for c in header.strip("|").split("|")]
+    table = {}
+    for row in rows[:3]:
+        values = [c.strip() for c in row.strip("|").split("|")]
+        table[values[1]] = dict(zip(cells, values, strict=True))
+    mppi, cr = table["mppi"], table["cr"]
+    assert mppi["budget stops"] != "" and cr["budget stops"] == ""
+    assert float(mppi["compute CPU max [s]"]) >= float(mppi["compute CPU p95 [s]"])

@@ -18,3 +18,12 @@ def test_bench_refuses_zero_episodes(capsys):
     assert info.value.code == 2
     err = capsys.readouterr().err
     assert "--episodes 0" in err and err.count("\n") == 1
+
+
+def test_bench_times_the_replanners_on_cpu_time_per_task(capsys):
+    main(["--steps-only", "--methods", "mppi", "--episodes", "1", "--tasks", "1"])
+    out = capsys.readouterr().out
+    assert "method mppi      outer step on Task 3 (1 env)" in out
+    line = next(x for x in out.splitlines() if "Task 1 (1 env" in x)
+    assert line.startswith("method mppi") and "thread CPU: median" in line and "max" in line
+    assert "over 10 ms:" in line

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -146,3 +147,5 @@ def test_deadline_misses_count_the_steps_over_the_period_on_cpu_time(context):
     result = run_episode(ctx.robot, Busy(), scenario, config.gains(), loop)
     assert result.deadline_misses == pytest.approx(0.5, abs=0.06)
     assert result.compute_time_median > 0.01  # wall time counts the sleeps too
+    assert result.compute_cpu_max >= result.compute_cpu_p95 >= 0.015  # the burning half
+    assert math.isnan(result.budget_stops)  # no time budget of its own
