@@ -16,6 +16,16 @@ def default_out() -> Path:
     return Path.cwd() / "analysis" / "out"
 
 
+def write_report(out_dir: Path, name: str, text: str) -> Path:
+    """``text`` as ``out_dir/name``, replaced atomically (a regenerated report); its path."""
+    from amex.core.durable import replace_durably
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    path = out_dir / name
+    replace_durably(path, text.encode())
+    return path
+
+
 def print_written(
     prog: str, write: Callable[[], Sequence[Path]], errors: tuple[type[Exception], ...]
 ) -> int:

@@ -20,7 +20,7 @@ import pandas as pd
 from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
 
-from . import default_out
+from . import default_out, write_report
 from .claims import claims
 from .decide import Claim
 from .episodes import TableError, load_runs
@@ -227,11 +227,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     frames = {"paper": paper_aggregate(), **{k: aggregate(v) for k, v in episodes.items()}}
     text = report(frames, episodes, sources)
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / args.name
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    path = write_report(args.out, args.name, text)
     print(text)
     print(f"wrote {path}", file=sys.stderr)
     return 0

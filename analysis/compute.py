@@ -25,7 +25,7 @@ import pandas as pd
 from amex.app.argparsing import OneLineParser
 from amex.experiment.store import StoreError
 
-from . import default_out
+from . import default_out, write_report
 from .claims import PAPER_METHODS, claim_names, compute_claim
 from .episodes import TableError
 from .markdown import markdown_table
@@ -141,11 +141,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"analysis.compute: error: {e}", file=sys.stderr)
         return 2
     text = report(reruns, sources)
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / "compute.md"
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    path = write_report(args.out, "compute.md", text)
     print(text)
     print(f"wrote {path}", file=sys.stderr)
     return 0
