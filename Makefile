@@ -34,9 +34,9 @@ test-kernels: $(STAMP)
 	  OPENBLAS_CORETYPE=$$kernel $(BIN)/python -m pytest -q $(KERNEL_TESTS) || exit $$?; \
 	done
 
-## Long end-to-end tests (marked slow).
+## Long end-to-end tests (marked slow; the slow docs checks run in make docs).
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow
+	$(BIN)/python -m pytest -q -m slow --ignore=tests/docs
 
 ## Logs in a real browser viewer: Debian's chromium and Foxglove Studio 1.48 (npm), installed here
 ## if missing, open logged episodes headless; every topic listed, no player problems (~3 min).
@@ -160,7 +160,7 @@ $(DOCS_STAMP): $(STAMP) pyproject.toml
 	touch $(DOCS_STAMP)
 
 docs: $(DOCS_STAMP)
-	$(BIN)/python -m pytest -q tests/docs
+	$(BIN)/python -m pytest -q -m "not viewer and not live" tests/docs
 	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict --site-dir site
 
 ## The site on http://127.0.0.1:8000/ (this machine only), rebuilt on every change.

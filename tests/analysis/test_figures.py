@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 from analysis import figures  # noqa: E402
@@ -21,6 +23,7 @@ def _amex_run(args, cwd):
     assert proc.returncode == 0, proc.stderr[-2000:]
 
 
+@pytest.mark.slow
 def test_make_figures_draws_fig4_and_fig6_from_the_logged_runs(tmp_path):
     fig4, fig6 = tmp_path / "fig4", tmp_path / "fig6"
     _amex_run(["-m", "experiment=fig4", "max_time=0.4", f"hydra.sweep.dir={fig4}"], tmp_path)

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 import yaml
 
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -38,6 +39,7 @@ def _amex_run(args, cwd):
     return subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=env, timeout=600)
 
 
+@pytest.mark.slow
 def test_the_robustness_sweep_runs_every_configuration_once():
     from amex.experiment.store import config_hash
 
@@ -47,6 +49,7 @@ def test_the_robustness_sweep_runs_every_configuration_once():
     assert {c.outer_hz for c in configs} == {100.0} and {c.episodes for c in configs} == {50}
 
 
+@pytest.mark.slow
 def test_the_pr2_sweep_runs_every_cell_once_and_logs_fig6():
     from amex.experiment.store import config_hash
 
@@ -58,6 +61,7 @@ def test_the_pr2_sweep_runs_every_cell_once_and_logs_fig6():
     assert {c.controller.disturbance for c in logged} == {"none", "observer"}
 
 
+@pytest.mark.slow
 def test_the_robustness_study_runs_as_a_sweep_and_the_report_only_reads_it(tmp_path):
     runs = tmp_path / "runs"
     args = [
@@ -128,6 +132,7 @@ def _pr2_grids():
     return list(conf["hydra"]["sweeper"]["grids"])
 
 
+@pytest.mark.slow
 def test_the_pr2_study_runs_as_a_sweep_and_fig6_comes_from_its_logs(tmp_path):
     runs = tmp_path / "runs"
     grids = _pr2_grids()

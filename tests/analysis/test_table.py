@@ -204,6 +204,7 @@ def test_compare_refuses_a_bad_benchmark_argument(tmp_path, capsys):
     assert not (tmp_path / "compare.md").exists()
 
 
+@pytest.mark.slow
 def test_a_seed_sweep_pools_into_one_benchmark_paired_on_seed_and_env(tmp_path):
     import subprocess
     import sys

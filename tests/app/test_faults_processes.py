@@ -118,6 +118,7 @@ def test_ctrl_c_on_a_sweep_prints_one_line_without_traceback_or_leaks(tmp_path):
     _closing_line_is_clean(stderr, "SIGINT")
 
 
+@pytest.mark.slow
 def test_sigterm_to_a_sharded_sweep_stops_every_worker_and_the_same_command_finishes_it(tmp_path):
     args = ["-m", "task=1", "method=dmp", "episodes=12", "shards=4", "max_time=3"]
     proc, stderr = _stop_sweep(tmp_path, lambda p: os.kill(p.pid, signal.SIGTERM), args)
@@ -137,11 +138,13 @@ def test_sigterm_to_a_sharded_sweep_stops_every_worker_and_the_same_command_fini
         assert rows[path][: len(before)] == before
 
 
+@pytest.mark.slow
 def test_sigkill_to_a_sweep_launcher_leaves_no_worker_running(tmp_path):
     proc, _ = _stop_sweep(tmp_path, lambda p: os.kill(p.pid, signal.SIGKILL))
     assert proc.returncode == -signal.SIGKILL
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("after", [0.3, 1.5, 3.0])
 def test_a_launcher_killed_before_its_jobs_began_leaves_no_job_running(tmp_path, after):
     """SIGKILL while Hydra hands the jobs out: none runs unwatched, idle workers go soon after,
@@ -183,6 +186,7 @@ def _all_with_launcher(pid: int) -> set[int]:
     return found
 
 
+@pytest.mark.slow
 def test_a_second_run_into_a_busy_directory_is_refused_in_one_line(tmp_path):
     out = tmp_path / "run"
     args = ["task=3", "method=amex", "episodes=40", "max_time=6", f"hydra.run.dir={out}"]
@@ -229,6 +233,7 @@ def test_the_lock_is_refused_while_held_and_free_after_its_holder_is_killed(tmp_
     assert len(read_rows(tmp_path / "episodes.csv")) == 1
 
 
+@pytest.mark.slow
 def test_ctrl_c_on_a_single_run_says_how_many_episodes_were_kept(tmp_path):
     out = tmp_path / "run"
     proc = _start(

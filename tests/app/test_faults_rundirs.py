@@ -26,6 +26,7 @@ def test_a_run_directory_whose_own_file_is_a_link_is_refused_and_the_target_kept
     assert target.read_text() == "the user's file"
 
 
+@pytest.mark.slow
 def test_runs_started_in_the_same_second_with_other_seeds_get_their_own_directories(tmp_path):
     procs = [
         subprocess.Popen(
@@ -47,6 +48,7 @@ def test_runs_started_in_the_same_second_with_other_seeds_get_their_own_director
         assert f"seed={seed}" in overrides  # each records its own seed
 
 
+@pytest.mark.slow
 def test_of_two_runs_started_together_into_one_directory_the_record_is_the_winners(tmp_path):
     """The loser is refused before its Hydra writes a byte: .hydra/ records the winner's run."""
     for attempt in range(2):

@@ -103,6 +103,7 @@ def test_video_options_beyond_any_screen_are_refused(tmp_path, capsys, option, v
     assert exit_info.value.code == 2 and len(err.strip().splitlines()) == 1 and valid in err
 
 
+@pytest.mark.slow
 def test_in_a_log_file_progress_comes_as_whole_lines(tmp_path):
     done = subprocess.run(
         [*RUN, "-m", "task=0", "method=track,amex", "episodes=2", "max_time=0.2",

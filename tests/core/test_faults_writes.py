@@ -116,6 +116,7 @@ def _amex_run(args, cwd):
     )
 
 
+@pytest.mark.slow
 def test_amex_run_on_a_disk_that_fills_stops_with_one_line_and_resumes(small_disk, tmp_path):
     disk, fill = small_disk
     out = disk / "run"

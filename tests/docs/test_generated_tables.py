@@ -33,6 +33,7 @@ def test_the_pages_include_generated_tables():
     }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("table", [t.path for t in load("hooks").TABLES])
 def test_a_committed_table_is_what_the_analysis_writes(hooks, table, tmp_path):
     spec = next(t for t in hooks.TABLES if t.path == table)

@@ -66,6 +66,7 @@ def _run(args, cwd, site):
     )
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("change", ["module", "version"])
 def test_a_resume_after_a_plugin_method_changed_is_refused_with_one_line(tmp_path, change):
     site = _site_with_servo(tmp_path)

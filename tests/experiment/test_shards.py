@@ -117,6 +117,7 @@ def test_shards_that_overlap_or_leave_gaps_are_refused_naming_them():
     check_cover("task 1 dmp", {"a": (None, {0, 1}), "b": (None, {0, 1})})  # reruns: as before
 
 
+@pytest.mark.slow
 def test_sharded_cell_gives_the_unsharded_rows_and_table_and_refuses_a_missing_shard(tmp_path):
     from analysis.table import main as table
 
@@ -158,6 +159,7 @@ def test_a_shard_out_of_range_or_a_subdir_without_the_shard_is_one_line(tmp_path
     assert not (tmp_path / "s").exists()
 
 
+@pytest.mark.slow
 def test_a_sharded_sweep_on_submitit_local_writes_every_shard_and_tabulates(tmp_path):
     from analysis.table import main as table
 
@@ -186,6 +188,7 @@ def slurm(tmp_path, monkeypatch):
     fake_slurm.shutdown(state)
 
 
+@pytest.mark.slow
 def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path, slurm):
     """The shipped SLURM config through submitit, scheduled by a local stand-in for SLURM."""
     from analysis.table import main as table
@@ -224,6 +227,7 @@ def test_a_sharded_sweep_on_the_slurm_launcher_is_one_job_array(tmp_path, slurm)
     assert "CPU in the jobs' runs (elsewhere" in closing and "longest job" in closing, closing
 
 
+@pytest.mark.slow
 def test_a_preempted_slurm_task_is_requeued_and_resumes(tmp_path, slurm):
     """SLURM's warning signal (USR2) makes submitit requeue the task; the rerun keeps the rows."""
     state, env = slurm

@@ -113,6 +113,7 @@ def test_paused_loop_moves_only_by_single_steps_and_stop_ends_the_episode(episod
     assert not thread.is_alive() and isinstance(errors[0], EpisodeStopped)
 
 
+@pytest.mark.slow
 def test_session_switches_between_every_registered_method_and_records_a_log(tmp_path):
     session = LiveSession(["task=3"], max_time=20.0, record_dir=tmp_path)
     session.start()

@@ -410,6 +410,7 @@ def test_non_loopback_host_needs_expose_on_network(episode, tmp_path):
     ).stdout
 
 
+@pytest.mark.slow
 def test_many_idle_connections_hold_few_threads_and_are_closed(server):
     before = threading.active_count()
     idle = [socket.create_connection(("127.0.0.1", server.port), timeout=5) for _ in range(1000)]

@@ -296,6 +296,7 @@ def _rows(paths):
     return sorted(rows, key=lambda r: int(r["env"]))
 
 
+@pytest.mark.slow
 def test_rows_are_the_same_with_one_worker_and_with_two_shards_on_two_workers(tmp_path):
     """Bit for bit (every column but the timings), Task 4: moving goal and obstacle."""
     env = {k: v for k, v in os.environ.items() if k != "AMEX_DEBUG"}

@@ -27,6 +27,7 @@ def _site_with_servo(tmp_path: Path) -> Path:
     return site
 
 
+@pytest.mark.slow
 def test_a_plugin_method_runs_from_the_command_line_beside_the_built_ins(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "AMEX_DEBUG"}
     env["PYTHONPATH"] = str(_site_with_servo(tmp_path))
