@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -18,10 +19,12 @@ from amex.app.compose import (
     composed,
     explain,
     initialized,
-    load_config,
     parse_overrides,
+    refuse_schema_methods,
+    run_config,
     shard_suffix,
     use_command_line,
+    validated,
 )
 from amex.core.durable import RunLock
 from amex.core.errors import (
@@ -83,9 +86,9 @@ def validate_command_line(argv: list[str]) -> list[Path]:
         cell = tuple(o for o in job if o.split("=", 1)[0].lstrip("+") != "shard")
         try:
             if cell not in checked:
-                config = load_config(job)
-                preflight(config)
-                job_dir = check_launch(job, hydra_overrides, multirun, check_dir=not checked)
+                config, job_dir = compose_job(
+                    job, hydra_overrides, multirun, not checked, check_config=preflight
+                )
                 checked[cell] = (config, job_dir)
             else:  # another shard of a checked cell: its range and its directory
                 first, first_dir = checked[cell]
@@ -253,8 +256,26 @@ def check_launch(
     For a sweep (``multirun``) that is ``hydra.sweep.dir / hydra.sweep.subdir``. ``check_dir``:
     check the launcher and the (sweep) directory, once per sweep.
     """
+    return compose_job(overrides, hydra_overrides, multirun, check_dir)[1]
+
+
+def compose_job(
+    overrides: list[str],
+    hydra_overrides: list[str],
+    multirun: bool,
+    check_dir: bool = True,
+    check_config: Callable[[Any], None] | None = None,
+) -> tuple[Any, Path]:
+    """One composition of a job: its validated ``RunConfig`` and its checked directory.
+
+    The run's configuration and Hydra's part (launcher, directories) come from the same
+    composition, so a command's check composes each cell once (:func:`check_launch`).
+    ``check_config`` (e.g. :func:`amex.experiment.runner.preflight`) checks the configuration
+    before the directories are.
+    """
     from omegaconf import OmegaConf
 
+    refuse_schema_methods(overrides)
     with composed(overrides, hydra_overrides) as cfg:
         hydra_cfg: Any = OmegaConf.to_container(cfg.hydra, resolve=False)
         key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
@@ -262,15 +283,19 @@ def check_launch(
         directory = Path(chosen)
         subdir = str(OmegaConf.select(cfg, "hydra.sweep.subdir")) if multirun else ""
         job = directory / subdir
+        config = run_config(cfg)
+    config = validated(config)
+    if check_config is not None:
+        check_config(config)
     if not chosen.strip():
         raise LaunchError(f"invalid {key}=''; valid: a directory path (runs/mine, /data/run1, ...)")
     if not check_dir:
-        return job
+        return config, job
     launcher = hydra_cfg.get("launcher") or {}
     if multirun and str(launcher.get("_target_", "")).endswith("JoblibLauncher"):
         _check_joblib(launcher)
     check_output_dir(key, directory)
-    return job
+    return config, job
 
 
 def sweep_settings(

@@ -16,6 +16,10 @@ import os
 # per core. Set before numpy is imported anywhere.
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
+# No on-screen OpenGL: importing MuJoCo otherwise loads GLFW for its Renderer (~40 ms of every
+# process); amex draws offscreen through mujoco.egl or mujoco.osmesa (amex.log.render), which
+# this leaves alone. A MUJOCO_GL of the user's is kept.
+os.environ.setdefault("MUJOCO_GL", "disable")
 
 import sys  # noqa: E402
 

@@ -66,10 +66,12 @@ def task(cfg: Any) -> None:
     from omegaconf import OmegaConf
     from tqdm.contrib.logging import logging_redirect_tqdm
 
+    from amex.app.heap import settle
     from amex.app.progress import progress_bar, run_line
     from amex.experiment.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
+    settle()  # the set-up's heap out of the collector's way (amex.app.heap)
     logging.raiseExceptions = False  # run.log is a record: a full disk must not print tracebacks
     hydra_config = HydraConfig.get()
     run_dir = Path(hydra_config.runtime.output_dir)

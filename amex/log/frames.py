@@ -8,7 +8,9 @@ and builds the ``foxglove.FrameTransforms`` message of one step.
 from __future__ import annotations
 
 import math
+import os
 import xml.etree.ElementTree as ET
+from functools import lru_cache
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -186,14 +188,23 @@ def _quaternion(q: Quat) -> Quaternion:
 
 
 def _urdf_joints(urdf_path: str) -> list[tuple[str, str, str]]:
-    """(joint, parent link, child link) of every joint in the URDF, in file order."""
+    """(joint, parent link, child link) of every joint in the URDF, in file order.
+
+    Parsed once per file version (its size and modification time), not once per logged episode.
+    """
+    stat = os.stat(urdf_path)
+    return list(_parsed_joints(urdf_path, stat.st_size, stat.st_mtime_ns))
+
+
+@lru_cache(maxsize=8)
+def _parsed_joints(urdf_path: str, size: int, mtime_ns: int) -> tuple[tuple[str, str, str], ...]:
     root = ET.parse(urdf_path).getroot()
     out = []
     for joint in root.iter("joint"):
         parent, child = joint.find("parent"), joint.find("child")
         if parent is not None and child is not None:
             out.append((joint.get("name", ""), parent.get("link", ""), child.get("link", "")))
-    return out
+    return tuple(out)
 
 
 def _root_link(pairs: list[tuple[str, str, str]]) -> str:

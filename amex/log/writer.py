@@ -368,26 +368,34 @@ class EpisodeLogger:
         The channel and its schema are made at the first step from the values then; later a
         key the schema lacks is left out, and a value of another kind is written as null.
         """
-        method: dict[str, Any] = {"t": t}
-        for key, value in internals.items():
-            if isinstance(value, np.ndarray):
-                if value.size > 64 or value.ndim != 1:
-                    continue  # large arrays do not belong in a per-step JSON message
-                value = value.tolist()
-            method[key] = value
         if self._method_kinds is None:
+            method: dict[str, Any] = {"t": t}
+            for key, value in internals.items():
+                if isinstance(value, np.ndarray):
+                    if value.size > 64 or value.ndim != 1:
+                        continue  # large arrays do not belong in a per-step JSON message
+                    value = value.tolist()
+                method[key] = value
             schema = M.object_schema("amex.MethodInternals", method)
             self._method_kinds = {k: v["type"] for k, v in schema["properties"].items()}
             channel = foxglove.Channel("/method", schema=schema, context=self._context)
             self._json["/method"] = channel
         kinds = self._method_kinds
-        message = {}
-        for key, value in method.items():
+        message: dict[str, Any] = {"t": t} if "t" in kinds else {}
+        for key, value in internals.items():
             kind = kinds.get(key)
-            if kind is None:
+            if kind is None or key == "t":
                 continue
-            expected = M.value_schema(value)
-            message[key] = value if expected is not None and expected["type"] == kind else None
+            if isinstance(value, np.ndarray):
+                if value.size > 64 or value.ndim != 1:
+                    continue  # as at the first step
+                numbers = value.dtype.kind in "fiu"  # tolist() gives Python ints and floats
+                value = value.tolist()
+                fits = kind == "array" if numbers else _kind_of(value) == kind
+            else:
+                known = _KINDS.get(type(value))
+                fits = known == kind if known is not None else _kind_of(value) == kind
+            message[key] = value if fits else None
         self._json["/method"].base.log(M.dumps(message), ns)
 
     def _log_command(self, t: float, command: Any, ns: int) -> None:
@@ -428,3 +436,21 @@ class EpisodeLogger:
         self._json["/episode"].base.log(M.dumps({"t": t, "status": status, **row}), round(t * 1e9))
         self._write_metadata("outcome", {"status": status, "steps": self._steps, **row})
         self._outcome_written = True
+
+
+#: The schema kind of the common value types of ``internals()`` (what M.value_schema gives).
+_KINDS: dict[type, str] = {
+    bool: "boolean",
+    int: "number",
+    float: "number",
+    np.float64: "number",
+    np.int64: "number",
+    str: "string",
+}
+
+
+def _kind_of(value: Any) -> str | None:
+    """The schema kind (``number``, ``array``, ...) of one value, None if it has none."""
+    schema = M.value_schema(value)
+    return None if schema is None else schema["type"]
+

@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-import qpsolvers
 
 from amex.core.errors import SolverError
 from amex.core.scaling import scaled
@@ -165,6 +164,8 @@ def solve_barrier_qp(qp: BarrierQP, solver: str, slack_weight: float) -> Barrier
     Raises:
         SolverError: neither the QP nor its relaxation could be solved (carries the QP).
     """
+    import qpsolvers  # imported by the runs that solve a QP (~40 ms of every other start-up)
+
     G, h = (qp.G, qp.h) if len(qp.h) else (None, None)
     u = qpsolvers.solve_qp(qp.P, qp.c, G, h, lb=qp.lb, ub=qp.ub, solver=solver)
     if u is not None and np.isfinite(u).all():

@@ -249,16 +249,35 @@ class QuadraticBSpline:
         interior = midpoints if n == N + 1 else np.arange(1, n - 2) / (n - 2)
         knots = np.concatenate([np.zeros(3), interior, np.ones(3)])
         spline = cls(knots, np.zeros((n, Y.shape[1])))
-        B = spline.basis_matrix(sites)
-        if n == N + 1:
-            C = np.linalg.solve(B, Y)
-        else:
-            rhs = Y - np.outer(B[:, 0], Y[0]) - np.outer(B[:, -1], Y[-1])
-            inner, *_ = np.linalg.lstsq(B[:, 1:-1], rhs, rcond=None)
-            C = np.vstack([Y[0], inner, Y[-1]])
-        C[0], C[-1] = Y[0], Y[-1]  # exact ends (the solve is exact there up to rounding)
-        spline.control_points[:] = C
+        spline.control_points[:] = _fitted_points(spline, sites, Y)
         return spline
+
+
+#: Control points of the last few fits, by their samples: every episode of a run builds its
+#: method, and AMEX fits the same reference each time (a dense solve of N + 1 rows, tens of ms).
+_FITS: dict[tuple[bytes, tuple[int, ...], bytes], np.ndarray] = {}
+_FITS_KEPT = 8
+
+
+def _fitted_points(spline: QuadraticBSpline, sites: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """The control points of :meth:`QuadraticBSpline.fit` (a copy; computed once per samples)."""
+    key = (Y.tobytes(), Y.shape, spline.knots.tobytes())
+    known = _FITS.get(key)
+    if known is not None:
+        return known.copy()
+    n, N = len(spline.control_points), len(Y) - 1
+    B = spline.basis_matrix(sites)
+    if n == N + 1:
+        C = np.linalg.solve(B, Y)
+    else:
+        rhs = Y - np.outer(B[:, 0], Y[0]) - np.outer(B[:, -1], Y[-1])
+        inner, *_ = np.linalg.lstsq(B[:, 1:-1], rhs, rcond=None)
+        C = np.vstack([Y[0], inner, Y[-1]])
+    C[0], C[-1] = Y[0], Y[-1]  # exact ends (the solve is exact there up to rounding)
+    if len(_FITS) >= _FITS_KEPT:
+        _FITS.pop(next(iter(_FITS)))
+    _FITS[key] = C.copy()
+    return C
 
 
 class WarpedSpline:

@@ -1,0 +1,72 @@
+"""Start-up cost of ``amex-run``: the CPU a process spends besides its episodes, beside its floor.
+
+Every SLURM array task and every joblib worker pays it, so it is measured as a whole process:
+``amex-run`` with one environment of Task 0 that stops after ``STEPS`` inner steps, its user +
+system CPU time read from ``getrusage(RUSAGE_CHILDREN)``. The floor is the same interpreter
+importing only the libraries a run calls (MuJoCo, Pinocchio, coal, Numba, SciPy's LAPACK, Hydra)
+and exiting. ``warm``: the Numba cache of this install; ``cold``: an empty ``NUMBA_CACHE_DIR``,
+i.e. every kernel a run calls compiled again, as on a fresh install.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+from typing import NamedTuple
+
+#: Inner steps of the measured episode (``max_time`` = STEPS ms): the run does its whole set-up.
+STEPS = 10
+#: What a run needs imported, whatever amex does (the floor).
+FLOOR_IMPORTS = "numpy, mujoco, pinocchio, coal, numba, scipy.linalg.lapack, hydra, omegaconf"
+
+
+class StartupTimes(NamedTuple):
+    """CPU seconds (user + system) of whole processes, one per repetition."""
+
+    warm: list[float]
+    cold: list[float]
+    floor: list[float]
+
+
+def _child_cpu(command: list[str], env: dict[str, str], cwd: str) -> float:
+    """User + system CPU [s] of one child process running ``command`` to its end."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run(command, env=env, cwd=cwd, check=True, capture_output=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def _run_command(run_dir: Path) -> list[str]:
+    return [
+        str(Path(sys.executable).with_name("amex-run")),  # the console script users run
+        "task=0",
+        "method=track",
+        "episodes=1",
+        f"max_time={STEPS * 1e-3}",
+        f"hydra.run.dir={run_dir}",
+    ]
+
+
+def startup_times(repeats: int = 5) -> StartupTimes:
+    """Start-up CPU of ``amex-run``, warm and with a cold Numba cache, and its floor.
+
+    The first warm run is discarded (it fills the reference plan's and Numba's caches).
+    """
+    env = dict(os.environ)
+    warm: list[float] = []
+    cold: list[float] = []
+    floor: list[float] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
+        floor_cmd = [sys.executable, "-c", f"import {FLOOR_IMPORTS}"]
+        _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
+        for k in range(repeats):
+            warm.append(_child_cpu(_run_command(Path(tmp) / f"warm{k}"), env, tmp))
+            fresh = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / f"numba{k}"))
+            cold.append(_child_cpu(_run_command(Path(tmp) / f"cold{k}"), fresh, tmp))
+            floor.append(_child_cpu(floor_cmd, env, tmp))
+    return StartupTimes(warm, cold, floor)
