@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -38,6 +39,13 @@ from amex.sim.metrics import (
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
 from amex.sim.simulation import MismatchConfig, Simulation
+
+
+class Probe(Protocol):
+    """Sees the simulator at the start of every inner step (benchmarks; never in a run)."""
+
+    def __call__(self, k: int, data: mujoco.MjData) -> None:
+        """Called before inner step ``k`` reads the state from ``data``."""
 
 
 class _Episode:
@@ -144,6 +152,7 @@ def run_episode(
     mismatch: MismatchConfig | None = None,
     disturbance: DisturbanceConfig | None = None,
     reference_path: np.ndarray | None = None,
+    probe: Probe | None = None,
 ) -> EpisodeResult:
     """Execute ``method`` in ``scenario`` and measure it (see :mod:`amex.sim.metrics`).
 
@@ -161,6 +170,8 @@ def run_episode(
             the paper's controller); see :mod:`amex.control.disturbance`.
         reference_path: the reference plan's TCP positions, shape (N + 1, 3) [m], for
             ``plan_fidelity`` (NaN without it).
+        probe: called as ``probe(k, data)`` at the start of every inner step ``k``, with the
+            simulator's ``MjData`` (``amex.app.bench_inner`` times the steps with it); None in runs.
     """
     episode = _Episode(
         robot,
@@ -174,13 +185,13 @@ def run_episode(
         disturbance,
         reference_path,
     )
-    result = _run(episode, recorder)
+    result = _run(episode, recorder, probe)
     if recorder is not None:
         recorder.finish(result)
     return result
 
 
-def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
+def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> EpisodeResult:
     """The two-rate loop (module notes), one function: its locals are the 1 kHz loop's state.
 
     Longer than 80 lines on purpose: splitting the inner step into calls would cost attribute
@@ -221,6 +232,8 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
     state: RobotState | None = None
     try:
         for k in range(n_steps + 1):
+            if probe is not None:
+                probe(k, mjd)
             t = k * dt
             outer = k % substeps == 0
             # copies on outer steps (observations and logs keep them), views otherwise
