@@ -160,9 +160,12 @@ class OperationalSpaceController:
         self._lo = -robot.torque_limit
         self._hi = robot.torque_limit
         n = robot.nv
-        self._zeros6 = np.zeros(6)
-        self._zero_row = np.zeros((1, n))
-        self._A, self._b = np.empty((n, n)), np.empty(n)  # kernel work space
+        self._ws = np.empty((n + 1, n))  # kernel work space: A, then b
+        self._targets = np.zeros(kernels.targets_size(n))  # the held command, packed
+        self._command: Command | None = None  # the command packed into _targets
+        self._alone = False
+        self._col = np.zeros(1 + n)  # the collision task's (phi, J), written per step
+        self._no_col = np.zeros(1 + n)
         g, H = gains, self.regularizer()
         tasks = (g.pos, g.dir, g.joint, g.col)
         self._params = kernels.pack_params(
@@ -179,33 +182,27 @@ class OperationalSpaceController:
             return g.reg * np.asarray(metric, dtype=float)
         return np.full(n, g.reg)
 
+    def _hold(self, command: Command) -> None:
+        """Pack ``command`` for the kernels (once per new command object; the loop holds one
+        command for a whole outer period, so its arrays must not change while it is held)."""
+        kernels.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
+        self._alone = command.q is not None and self.gains.joint_only  # (module notes)
+        self._command = command
+
+    def _collision(self, state: RobotState) -> np.ndarray:
+        """The collision task's ``(phi, J)`` at ``state`` for the held command."""
+        if self.col_map is None or self._alone:
+            return self._no_col
+        self.col_map.terms_into(state, self._col)
+        return self._col
+
     def _kernel_args(self, state: RobotState, command: Command) -> tuple:
-        """The arguments of the compiled kernels after ``(A, b[, x])`` (module :mod:`.kernels`)."""
-        ty = tyd = tq = tqd = None  # None: the task is off
-        if command.y is not None:
-            ty, tyd = command.y, command.yd if command.yd is not None else self._zeros6
-        if command.q is not None:
-            tq, tqd = command.q, command.qd if command.qd is not None else self._zeros
-        alone = tq is not None and self.gains.joint_only  # the joint task alone (module notes)
-        col_phi, Jc = 0.0, self._zero_row
-        if self.col_map is not None and not alone:
-            terms = self.col_map.evaluate(state)
-            col_phi, Jc = float(terms.phi[0]), terms.J
-        params = self._params_alone if alone else self._params
-        return (
-            state.J,
-            state.v,
-            state.q,
-            state.H,
-            state.acc_drift,
-            ty,
-            tyd,
-            tq,
-            tqd,
-            col_phi,
-            Jc,
-            params,
-        )
+        """The arguments of the compiled kernels after their outputs (module :mod:`.kernels`)."""
+        if command is not self._command:
+            self._hold(command)
+        params = self._params_alone if self._alone else self._params
+        col = self._collision(state)
+        return (state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col, params)
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
@@ -215,9 +212,10 @@ class OperationalSpaceController:
         system map by map, for tests.
         """
         n = self.robot.nv
-        A, b = np.empty((n, n)), np.empty(n)
-        kernels.normal_equations(A, b, *self._kernel_args(state, command))
-        return Objective(A, b)
+        ws = np.empty((n + 1, n))
+        self._command = None  # packed afresh: the command's arrays may have changed
+        kernels.normal_equations(ws, *self._kernel_args(state, command))
+        return Objective(ws[:n].copy(), ws[n].copy())
 
     def build_objective_reference(self, state: RobotState, command: Command) -> Objective:
         """The same normal equations as :meth:`build_objective`, one task map at a time."""
@@ -251,12 +249,27 @@ class OperationalSpaceController:
         Raises:
             SolverError: if the normal equations are not positive definite (e.g. a NaN state).
         """
-        A, b, x = self._A, self._b, np.empty(self.robot.nv)
-        info = kernels.osc_accelerations(A, b, x, *self._kernel_args(state, command))
+        if command is not self._command:
+            self._hold(command)
+        x = np.empty(self.robot.nv)
+        ws = self._ws
+        info = kernels.osc_accelerations(
+            ws,
+            x,
+            state.J,
+            state.v,
+            state.q,
+            state.H,
+            state.acc_drift,
+            self._targets,
+            self._collision(state),
+            self._params_alone if self._alone else self._params,
+        )
         if info != 0:
+            n = self.robot.nv
             raise SolverError(
                 f"OSC normal equations not positive definite (info={info})",
-                Objective(A.copy(), b.copy()),
+                Objective(ws[:n].copy(), ws[n].copy()),
             )
         return x
 

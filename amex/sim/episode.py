@@ -201,6 +201,7 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
     sim, sensor, collision, osc, inner = e.sim, e.sensor, e.collision, e.osc, e.inner
     pdata = robot.model.createData()
     mjm, mjd = sim.model, sim.data
+    qpos, qvel, qfrc, mj_step = mjd.qpos, mjd.qvel, mjd.qfrc_applied, mujoco.mj_step
     substeps, dt, n_steps = loop.substeps, e.dt, e.n_steps
     speed_limit = loop.speed_limit_factor * robot.velocity_limit
     goal_axis = scenario.goal_axis
@@ -237,8 +238,8 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
             t = k * dt
             outer = k % substeps == 0
             # copies on outer steps (observations and logs keep them), views otherwise
-            q = mjd.qpos.copy() if outer else mjd.qpos
-            v = mjd.qvel.copy() if outer else mjd.qvel
+            q = qpos.copy() if outer else qpos
+            v = qvel.copy() if outer else qvel
             state = RobotState(robot, pdata, q, v)
             q_history[k] = q
             tx, ty, tz = tcp = state.y_list[:3]
@@ -264,15 +265,15 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
             if outer:
                 trace.outer(state, collision, pdata)
                 seen = goal if sensor is None else sensor.measure(t)
-                obs = Observation(
-                    t=t,
-                    q=q,
-                    qd=v,
-                    y=state.y if seen_y is None else seen_y,
-                    yd=state.yd if seen_yd is None else seen_yd,
-                    goal=np.concatenate([seen, goal_axis]),
-                    obstacles=obstacles,
-                    obstacle_radii=radii,
+                obs = _observe(
+                    t,
+                    q,
+                    v,
+                    state.y if seen_y is None else seen_y,
+                    state.yd if seen_yd is None else seen_yd,
+                    np.concatenate([seen, goal_axis]),
+                    obstacles,
+                    radii,
                 )
                 command = _method_step(method, obs, k == 0, trace, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
@@ -284,15 +285,15 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
             if kinematic:
                 qacc = osc.accelerations(state, command)
                 tau = no_torque
-                kernels.euler_inplace(mjd.qpos, mjd.qvel, qacc, dt)
+                kernels.euler_inplace(qpos, qvel, qacc, dt)
                 mjd.time += dt
                 if detect_contacts:
                     mujoco.mj_kinematics(mjm, mjd)
                     mujoco.mj_collision(mjm, mjd)
             else:
                 tau = inner.torque(state, command)
-                mjd.qfrc_applied[:] = tau
-                mujoco.mj_step(mjm, mjd)
+                qfrc[:] = tau
+                mj_step(mjm, mjd)
                 qacc = mjd.qacc
             sum_sq_acc += float(qacc @ qacc)
             if mjd.ncon:
@@ -311,6 +312,30 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
     if state is not None:
         trace.axis = state.y_list[3:6]
     return e.result(k, t, distance, sum_sq_acc, collided, failure)
+
+
+def _observe(
+    t: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    y: np.ndarray,
+    yd: np.ndarray,
+    goal: np.ndarray,
+    obstacles: np.ndarray,
+    radii: np.ndarray,
+) -> Observation:
+    """The outer step's :class:`Observation`, its finiteness checked by one sum of squares.
+
+    Time, obstacles and radii are finite by construction (the scenario's motions). Where the sum
+    of squares of the other fields is not finite (a NaN, an infinity, or values too large to
+    square), the observation is built with its own checks, which raise the same
+    :class:`~amex.core.errors.InputError` naming the field as before, or pass huge finite values.
+    """
+    if math.isfinite(
+        float(q @ q) + float(v @ v) + float(y @ y) + float(yd @ yd) + float(goal @ goal)
+    ):
+        return Observation.prechecked(t, q, v, y, yd, goal, obstacles, radii)
+    return Observation(t, q, v, y, yd, goal, obstacles, radii)
 
 
 def _method_step(
