@@ -265,8 +265,13 @@ def cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> int:
         0 on success, else the 1-based index of the first non-positive pivot (LAPACK's
         ``info`` convention); ``x`` is then undefined.
     """
+    return _cholesky_solve(A, b, x, np.zeros(A.shape))
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray, L: np.ndarray) -> int:
+    """:func:`cholesky_solve` with the factor's work space ``L`` (n, n) given (its upper part unread)."""
     n = b.shape[0]
-    L = np.zeros((n, n))
     for j in range(n):
         s = A[j, j]
         for k in range(j):
@@ -293,10 +298,14 @@ def cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> int:
     return 0
 
 
+def workspace(n: int) -> np.ndarray:
+    """The work space of :func:`osc_accelerations` for n joints: A, b, x and the factor L."""
+    return np.zeros((2 * n + 2, n))
+
+
 @numba.njit(cache=True)
 def osc_accelerations(
     ws: np.ndarray,
-    x: np.ndarray,
     J: np.ndarray,
     v: np.ndarray,
     q: np.ndarray,
@@ -306,14 +315,28 @@ def osc_accelerations(
     col: np.ndarray,
     params: np.ndarray,
 ) -> int:
-    """:func:`normal_equations` into ``ws`` then :func:`cholesky_solve` into ``x``.
+    """:func:`normal_equations` into ``ws`` (:func:`workspace`), then the Cholesky solve.
+
+    ``ws`` rows: A (n), b (1), the solution x = q_ddot* (1), the factor L (n).
 
     Returns:
         the solve's ``info`` (0 on success).
     """
     normal_equations(ws, J, v, q, tcp_pose, drift, targets, col, params)
-    n = x.shape[0]
-    return cholesky_solve(ws[:n], ws[n], x)
+    n = v.shape[0]
+    return _cholesky_solve(ws[:n], ws[n], ws[n + 1], ws[n + 2 :])
+
+
+@numba.njit(cache=True)
+def clip_into(out: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """``out = min(max(x, lo), hi)`` element-wise (NaN stays NaN), as :func:`clip_inplace`."""
+    for i in range(x.shape[0]):
+        xi = x[i]
+        if xi < lo[i]:
+            xi = lo[i]
+        elif xi > hi[i]:
+            xi = hi[i]
+        out[i] = xi
 
 
 @numba.njit(cache=True)

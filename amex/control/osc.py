@@ -160,7 +160,8 @@ class OperationalSpaceController:
         self._lo = -robot.torque_limit
         self._hi = robot.torque_limit
         n = robot.nv
-        self._ws = np.empty((n + 1, n))  # kernel work space: A, then b
+        self._ws = kernels.workspace(n)  # A, b, x = q_ddot*, L
+        self._x = self._ws[n + 1]
         self._targets = np.zeros(kernels.targets_size(n))  # the held command, packed
         self._command: Command | None = None  # the command packed into _targets
         self._alone = False
@@ -249,13 +250,15 @@ class OperationalSpaceController:
         Raises:
             SolverError: if the normal equations are not positive definite (e.g. a NaN state).
         """
+        return self._solve(state, command).copy()
+
+    def _solve(self, state: RobotState, command: Command) -> np.ndarray:
+        """:meth:`accelerations` into the work space (a view, overwritten by the next call)."""
         if command is not self._command:
             self._hold(command)
-        x = np.empty(self.robot.nv)
         ws = self._ws
         info = kernels.osc_accelerations(
             ws,
-            x,
             state.J,
             state.v,
             state.q,
@@ -271,17 +274,24 @@ class OperationalSpaceController:
                 f"OSC normal equations not positive definite (info={info})",
                 Objective(ws[:n].copy(), ws[n].copy()),
             )
-        return x
+        return self._x
 
     def torque(self, state: RobotState, command: Command) -> np.ndarray:
         """Joint torques ``tau = M q_ddot* + h``, clipped to the limits, shape (7,) [N m].
 
         ``M q_ddot + h`` is evaluated by Pinocchio's RNEA in one pass (no mass matrix formed).
         """
-        qdd = self.accelerations(state, command)
+        qdd = self._solve(state, command)
         tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
         kernels.clip_inplace(tau, self._lo, self._hi)
         return tau
+
+    def torque_into(self, state: RobotState, command: Command, out: np.ndarray) -> np.ndarray:
+        """:meth:`torque` written into ``out`` (e.g. the simulator's applied forces); ``out``."""
+        qdd = self._solve(state, command)
+        tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
+        kernels.clip_into(out, tau, self._lo, self._hi)
+        return out
 
 
 def solve_objective(objective: Objective) -> np.ndarray:

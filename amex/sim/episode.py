@@ -202,6 +202,7 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
     pdata = robot.model.createData()
     mjm, mjd = sim.model, sim.data
     qpos, qvel, qfrc, mj_step = mjd.qpos, mjd.qvel, mjd.qfrc_applied, mujoco.mj_step
+    plain = inner is osc  # no disturbance compensation: the torque goes straight into MuJoCo
     substeps, dt, n_steps = loop.substeps, e.dt, e.n_steps
     speed_limit = loop.speed_limit_factor * robot.velocity_limit
     goal_axis = scenario.goal_axis
@@ -291,11 +292,14 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
                     mujoco.mj_kinematics(mjm, mjd)
                     mujoco.mj_collision(mjm, mjd)
             else:
-                tau = inner.torque(state, command)
-                qfrc[:] = tau
+                if plain:
+                    tau = osc.torque_into(state, command, qfrc)
+                else:
+                    tau = inner.torque(state, command)
+                    qfrc[:] = tau
                 mj_step(mjm, mjd)
                 qacc = mjd.qacc
-            sum_sq_acc += float(qacc @ qacc)
+            sum_sq_acc += float(qacc.dot(qacc))  # (the same BLAS ddot as qacc @ qacc)
             if mjd.ncon:
                 collided = True
             if outer:  # NaNs persist, so checking at the outer rate loses nothing
