@@ -8,7 +8,8 @@ next one, so the probe's own work is not counted; an outer step's time includes 
 (timed apart, :attr:`EpisodeSteps.method_cpu`).
 
 The floor of a step is the Pinocchio, coal and MuJoCo calls the step must make, replayed alone on
-the recorded state of the same step after the episode: forward kinematics with velocities, the
+the state of the same step, on a copy of the episode's world, by the probe at the start of the
+next step (so that step and floor are timed under the same load of the machine): forward kinematics with velocities, the
 joint Jacobians, the TCP placement, Jacobian and classical acceleration, the geometry placements
 and coal's distances (scenes with obstacles), the inverse dynamics (RNEA) and ``mj_step``
 (``sim=kinematic``: ``mj_kinematics`` and ``mj_collision`` where obstacles can be touched, no
@@ -72,72 +73,75 @@ class StepTimes(NamedTuple):
     in_margin_mask: np.ndarray
 
 
-class _Stamps:
-    """The probe: stamps at each step's start and the state the step starts from."""
+class _Floor:
+    """The library calls of one step, alone, on a copy of the episode's world (module notes)."""
 
-    def __init__(self) -> None:
-        self.start_cpu: list[int] = []  # when the probe was entered (the previous step's end)
-        self.start_wall: list[int] = []
-        self.end_cpu: list[int] = []  # when it returned (the step's start)
-        self.end_wall: list[int] = []
-        self.states: list[tuple[np.ndarray, ...]] = []
-        self.torques: list[np.ndarray] = []  # the torque each step applied (read at the next)
+    def __init__(
+        self, robot: Any, scenario: Scenario, inner_hz: float, kinematic: bool, margin: float
+    ) -> None:
+        self.robot, self.kinematic, self.margin = robot, kinematic, margin
+        self.pdata = robot.model.createData()
+        sim = Simulation(robot, scenario, inner_hz)
+        self.mjm, self.mjd = sim.model, sim.data
+        self.collision = (
+            CollisionModel(robot, scenario.obstacle_radii) if scenario.n_obstacles else None
+        )
+        self.qdd = np.zeros(robot.nv)
 
-    def __call__(self, k: int, data: mujoco.MjData) -> None:
-        cpu, wall = time.thread_time_ns(), time.perf_counter_ns()
-        if k:
-            self.torques.append(data.qfrc_applied.copy())
-        state = (data.qpos.copy(), data.qvel.copy(), data.mocap_pos.copy())
-        self.states.append((*state, data.qacc_warmstart.copy()))
-        self.start_cpu.append(cpu)
-        self.start_wall.append(wall)
-        self.end_wall.append(time.perf_counter_ns())
-        self.end_cpu.append(time.thread_time_ns())
-
-
-def _floor(
-    robot: Any, scenario: Scenario, inner_hz: float, kinematic: bool, margin: float, stamps: _Stamps
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Floor CPU and wall times [s] and the in-margin flag of each recorded step (module notes)."""
-    model, fid, zero = robot.model, robot.tcp_frame_id, robot.zero_velocity
-    pdata = model.createData()
-    sim = Simulation(robot, scenario, inner_hz)
-    mjm, mjd = sim.model, sim.data
-    collision = CollisionModel(robot, scenario.obstacle_radii) if scenario.n_obstacles else None
-    detect = kinematic and collision is not None
-    n = len(stamps.torques)
-    cpu, wall, inside = np.empty(n), np.empty(n), np.zeros(n, dtype=bool)
-    qdd = np.zeros(robot.nv)
-    fk, jac, place = pin.forwardKinematics, pin.computeJointJacobians, pin.updateFramePlacement
-    frame_jac, frame_acc = pin.getFrameJacobian, pin.getFrameClassicalAcceleration
-    rnea, step = pin.rnea, mujoco.mj_step
-    for k in range(n):
-        q, v, mocap, warm = stamps.states[k]
-        mjd.qpos[:], mjd.qvel[:], mjd.qfrc_applied[:] = q, v, stamps.torques[k]
+    def __call__(self, state: tuple[np.ndarray, ...], tau: np.ndarray) -> tuple[int, int, bool]:
+        """Thread CPU and wall time [ns] of the calls at ``state`` with ``tau``; in the margin."""
+        robot, mjm, mjd, pdata = self.robot, self.mjm, self.mjd, self.pdata
+        model, fid, zero = robot.model, robot.tcp_frame_id, robot.zero_velocity
+        q, v, mocap, warm = state
+        mjd.qpos[:], mjd.qvel[:], mjd.qfrc_applied[:] = q, v, tau
         mjd.mocap_pos[:], mjd.qacc_warmstart[:] = mocap, warm
+        collision = self.collision
         if collision is not None:
             collision.set_obstacles(mocap)
             gm, gd = collision.geom_model, collision.geom_data
         tic_wall, tic_cpu = time.perf_counter_ns(), time.thread_time_ns()
-        fk(model, pdata, q, v, zero)
-        jac(model, pdata)
-        place(model, pdata, fid)
-        frame_jac(model, pdata, fid, _LWA)
-        frame_acc(model, pdata, fid, _LWA)
+        pin.forwardKinematics(model, pdata, q, v, zero)
+        pin.computeJointJacobians(model, pdata)
+        pin.updateFramePlacement(model, pdata, fid)
+        pin.getFrameJacobian(model, pdata, fid, _LWA)
+        pin.getFrameClassicalAcceleration(model, pdata, fid, _LWA)
         if collision is not None:
             pin.updateGeometryPlacements(model, pdata, gm, gd)
             closest = pin.computeDistances(gm, gd)
-        if not kinematic:
-            rnea(model, pdata, q, v, qdd)
-            step(mjm, mjd)
-        elif detect:
+        if not self.kinematic:
+            pin.rnea(model, pdata, q, v, self.qdd)
+            mujoco.mj_step(mjm, mjd)
+        elif collision is not None:
             mujoco.mj_kinematics(mjm, mjd)
             mujoco.mj_collision(mjm, mjd)
-        cpu[k] = (time.thread_time_ns() - tic_cpu) * 1e-9
-        wall[k] = (time.perf_counter_ns() - tic_wall) * 1e-9
-        if collision is not None:
-            inside[k] = gd.distanceResults[closest].min_distance < margin
-    return cpu, wall, inside
+        cpu = time.thread_time_ns() - tic_cpu
+        wall = time.perf_counter_ns() - tic_wall
+        inside = collision is not None and gd.distanceResults[closest].min_distance < self.margin
+        return cpu, wall, inside
+
+
+class _Stamps:
+    """The probe: stamps at each step's start; the previous step's floor, timed in between."""
+
+    def __init__(self, floor: _Floor) -> None:
+        self.floor = floor
+        self.start_cpu: list[int] = []  # when the probe was entered (the previous step's end)
+        self.start_wall: list[int] = []
+        self.end_cpu: list[int] = []  # when it returned (the step's start)
+        self.end_wall: list[int] = []
+        self.floors: list[tuple[int, int, bool]] = []
+        self._state: tuple[np.ndarray, ...] = ()
+
+    def __call__(self, k: int, data: mujoco.MjData) -> None:
+        cpu, wall = time.thread_time_ns(), time.perf_counter_ns()
+        if k:  # the step that just ended, its torque still in qfrc_applied
+            self.floors.append(self.floor(self._state, data.qfrc_applied.copy()))
+        state = (data.qpos.copy(), data.qvel.copy(), data.mocap_pos.copy())
+        self._state = (*state, data.qacc_warmstart.copy())
+        self.start_cpu.append(cpu)
+        self.start_wall.append(wall)
+        self.end_wall.append(time.perf_counter_ns())
+        self.end_cpu.append(time.thread_time_ns())
 
 
 def measure(
@@ -174,15 +178,18 @@ def measure(
         scenario = make_scenario(
             run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
         )
-        stamps = _Stamps()
+        floor = _Floor(
+            context.robot, scenario, config.inner_hz, run.loop.kinematic, run.gains.margin
+        )
+        stamps = _Stamps(floor)
         world = {**run.world, "reference_path": context.plan.y[:, :3]}
         run_episode(context.robot, instance, scenario, run.gains, run.loop, probe=stamps, **world)
-        n = len(stamps.torques)  # steps that ran to their end (the last probe call ends none)
+        n = len(stamps.floors)  # steps that ran to their end (the last probe call ends none)
         step_cpu = (np.array(stamps.start_cpu[1 : n + 1]) - np.array(stamps.end_cpu[:n])) * 1e-9
         step_wall = (np.array(stamps.start_wall[1 : n + 1]) - np.array(stamps.end_wall[:n])) * 1e-9
-        floor_cpu, floor_wall, inside = _floor(
-            context.robot, scenario, config.inner_hz, run.loop.kinematic, run.gains.margin, stamps
-        )
+        floor_cpu = np.array([f[0] for f in stamps.floors]) * 1e-9
+        floor_wall = np.array([f[1] for f in stamps.floors]) * 1e-9
+        inside = np.array([f[2] for f in stamps.floors], dtype=bool)
         outer = np.arange(n) % run.loop.substeps == 0
         own = np.zeros(n)
         own[outer] = method_cpu[: int(outer.sum())]

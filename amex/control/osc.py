@@ -164,7 +164,7 @@ class OperationalSpaceController:
         self._x = self._ws[n + 1]
         self._targets = np.zeros(kernels.targets_size(n))  # the held command, packed
         self._command: Command | None = None  # the command packed into _targets
-        self._alone = False
+        self._alone = self._col_on = False
         self._col = np.zeros(1 + n)  # the collision task's (phi, J), written per step
         self._no_col = np.zeros(1 + n)
         g, H = gains, self.regularizer()
@@ -174,6 +174,7 @@ class OperationalSpaceController:
         )
         no_damping = PD(0.0, 0.0, 0.0)  # the joint task alone (module notes)
         self._params_alone = kernels.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
+        self._active = self._params  # the record of the held command
 
     def regularizer(self) -> np.ndarray:
         """The diagonal of H in Eq. 4, shape (n,)."""
@@ -187,23 +188,24 @@ class OperationalSpaceController:
         """Pack ``command`` for the kernels (once per new command object; the loop holds one
         command for a whole outer period, so its arrays must not change while it is held)."""
         kernels.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
-        self._alone = command.q is not None and self.gains.joint_only  # (module notes)
+        self._alone = alone = command.q is not None and self.gains.joint_only  # (module notes)
+        self._col_on = self.col_map is not None and not alone
+        self._active = self._params_alone if alone else self._params
         self._command = command
 
     def _collision(self, state: RobotState) -> np.ndarray:
         """The collision task's ``(phi, J)`` at ``state`` for the held command."""
-        if self.col_map is None or self._alone:
+        if not self._col_on:
             return self._no_col
-        self.col_map.terms_into(state, self._col)
+        self.col_map.terms_into(state, self._col)  # type: ignore[union-attr]
         return self._col
 
     def _kernel_args(self, state: RobotState, command: Command) -> tuple:
         """The arguments of the compiled kernels after their outputs (module :mod:`.kernels`)."""
         if command is not self._command:
             self._hold(command)
-        params = self._params_alone if self._alone else self._params
         col = self._collision(state)
-        return (state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col, params)
+        return (state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col, self._active)
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
@@ -256,17 +258,13 @@ class OperationalSpaceController:
         """:meth:`accelerations` into the work space (a view, overwritten by the next call)."""
         if command is not self._command:
             self._hold(command)
+        col = self._no_col
+        if self._col_on:
+            col = self._col
+            self.col_map.terms_into(state, col)  # type: ignore[union-attr]
         ws = self._ws
         info = kernels.osc_accelerations(
-            ws,
-            state.J,
-            state.v,
-            state.q,
-            state.H,
-            state.acc_drift,
-            self._targets,
-            self._collision(state),
-            self._params_alone if self._alone else self._params,
+            ws, state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col, self._active
         )
         if info != 0:
             n = self.robot.nv

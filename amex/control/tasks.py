@@ -115,9 +115,10 @@ class CollisionMap(TaskMap):
         if c.update(state.data, state) >= self.margin:
             out[0] = 0.0
             return False
-        J_world = self._world_jacobians(state)
+        if state.data is not self._data:
+            self._data, self._J_world = state.data, state.data.J
         collision_kernels.hinge_terms(
-            out, c.table, J_world, c.support, c.pair_obstacle, c.centers, self.margin
+            out, c.table, self._J_world, c.support, c.pair_obstacle, c.centers, self.margin
         )
         return True
 
