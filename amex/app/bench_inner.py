@@ -9,12 +9,12 @@ next one, so the probe's own work is not counted; an outer step's time includes 
 
 The floor of a step is the Pinocchio, coal and MuJoCo calls the step must make, replayed alone on
 the state of the same step, on a copy of the episode's world, by the probe at the start of the
-next step (so that step and floor are timed under the same load of the machine): forward kinematics with velocities, the
-joint Jacobians, the TCP placement, Jacobian and classical acceleration, the geometry placements
-and coal's distances (scenes with obstacles), the inverse dynamics (RNEA) and ``mj_step``
-(``sim=kinematic``: ``mj_kinematics`` and ``mj_collision`` where obstacles can be touched, no
-RNEA). A step is *in the margin* when coal's closest arm-obstacle pair is nearer than the
-controller's margin: the collision task is active there.
+next step (so that step and floor are timed under the same load of the machine): forward
+kinematics with velocities, the joint Jacobians, the TCP placement, Jacobian and classical
+acceleration, the geometry placements and coal's distances (scenes with obstacles), the inverse
+dynamics (RNEA) and ``mj_step`` (``sim=kinematic``: ``mj_kinematics`` and ``mj_collision`` where
+obstacles can be touched, no RNEA). A step is *in the margin* when coal's closest arm-obstacle
+pair is nearer than the controller's margin: the collision task is active there.
 
 :func:`inner_step` gives the inner steps (outer steps left out) in one clock; nothing here asserts
 a time. ``python -m amex.app.bench_inner --tasks 0 3 --methods amex dmp`` prints the table.
@@ -145,7 +145,10 @@ class _Stamps:
 
 
 def measure(
-    task: int = 3, method: str = "amex", envs: Sequence[int] = range(1), overrides: Sequence[str] = ()
+    task: int = 3,
+    method: str = "amex",
+    envs: Sequence[int] = range(1),
+    overrides: Sequence[str] = (),
 ) -> EpisodeSteps:
     """Every step of ``envs`` of ``task`` with ``method``, timed, and its floor (module notes).
 

@@ -99,7 +99,8 @@ class CollisionModel:
                 self.support[k, idx : idx + nv] = 1.0
         self._results = list(self.geom_data.distanceResults)  # live references into coal's vector
         self._placements_live = [self.geom_data.oMg[i] for i in range(gm.ngeoms)]
-        self.table, self.placements = np.zeros((n_pairs, len(TABLE_COLUMNS))), np.zeros((gm.ngeoms, 12))
+        self.table = np.zeros((n_pairs, len(TABLE_COLUMNS)))
+        self.placements = np.zeros((gm.ngeoms, 12))
         self.zero_copy = False
         self._data: pin.Data | None = None
         self._updated_for: object = None  # the state whose distances the views hold
@@ -213,7 +214,7 @@ class CollisionModel:
         return self._placements[k].translation
 
     def min_distance(self, data: pin.Data, key: object = None) -> float:
-        """Smallest arm-obstacle distance [m] (``inf`` without obstacles); ``key``: :meth:`update`."""
+        """Smallest arm-obstacle distance [m] (``inf`` without obstacles); ``key``: see update."""
         return self.update(data, key)
 
 

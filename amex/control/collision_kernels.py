@@ -1,15 +1,16 @@
-"""Compiled (Numba) collision tasks: the value and Jacobian of Eq. 5's third row from coal's results.
+"""Compiled (Numba) collision tasks: value and Jacobian of Eq. 5's third row from coal's results.
 
 Both kernels read one step's distances as :class:`~amex.control.collision.CollisionModel` leaves
 them (its ``table``: distance, normal, witness points per pair, a view of coal's own results), and
 Pinocchio's world-frame joint Jacobians ``data.J`` (``computeJointJacobians``; column i the
 spatial velocity (v_i, w_i) of joint i at the world origin), so the task costs no Python call per
 pair. Each writes ``(phi, d phi / d q)`` into one buffer, the controller's collision input
-(:func:`amex.control.kernels.normal_equations`). The Jacobian of a world point p on the arm is ``v_i + w_i x p`` for the joints i that move
-it (``support``), the same point Jacobian as :func:`amex.control.tasks.point_jacobian`; the numpy
-oracles are :meth:`~amex.control.tasks.CollisionMap.evaluate` and
-:meth:`~amex.control.tasks.ProxyMap.evaluate`. Their BLAS products sum in another order, so the
-two agree to rounding (~1e-16 relative), not bit for bit. Compiled without ``fastmath``.
+(:func:`amex.control.kernels.normal_equations`). The Jacobian of a world point p on the arm is
+``v_i + w_i x p`` for the joints i that move it (``support``), the same point Jacobian as
+:func:`amex.control.tasks.point_jacobian`; the numpy oracles are
+:meth:`~amex.control.tasks.CollisionMap.evaluate` and :meth:`~amex.control.tasks.ProxyMap.evaluate`.
+Their BLAS products sum in another order, so the two agree to rounding (~1e-16 relative), not
+bit for bit. Compiled without ``fastmath``.
 """
 
 from __future__ import annotations
@@ -114,7 +115,11 @@ def proxy_terms(
 
     Args:
         out: ``(phi, d phi / d q)``, shape (1 + n,), overwritten.
-        table, J_world, support, pair_obstacle, centers: as :func:`hinge_terms`.
+        table: as :func:`hinge_terms`.
+        J_world: as :func:`hinge_terms`.
+        support: as :func:`hinge_terms`.
+        pair_obstacle: as :func:`hinge_terms`.
+        centers: as :func:`hinge_terms`.
         placements: the geometry placements (``CollisionModel.placements``); the arm shape of a
             pair has the geometry index of its arm shape, whose translation is the shape's centre.
         pair_arm: the arm shape of each pair, shape (n_pairs,).

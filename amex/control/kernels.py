@@ -82,7 +82,7 @@ def pack_targets(
     tq: np.ndarray | None,
     tqd: np.ndarray | None,
 ) -> None:
-    """Pack a command's targets into ``out`` (:func:`targets_size`), as :func:`normal_equations` reads them.
+    """Pack a command's targets into ``out`` (:func:`targets_size`) for :func:`normal_equations`.
 
     Layout: ``[has_y, has_q, y* (6), y_dot* (6), q* (n), q_dot* (n)]``; an absent target is a 0
     flag (its values are then not read), an absent velocity is zero.
@@ -270,7 +270,7 @@ def cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> int:
 
 @numba.njit(cache=True)
 def _cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray, L: np.ndarray) -> int:
-    """:func:`cholesky_solve` with the factor's work space ``L`` (n, n) given (its upper part unread)."""
+    """:func:`cholesky_solve` with the work space ``L`` (n, n) of the factor (upper part unread)."""
     n = b.shape[0]
     for j in range(n):
         s = A[j, j]

@@ -185,8 +185,11 @@ class OperationalSpaceController:
         return np.full(n, g.reg)
 
     def _hold(self, command: Command) -> None:
-        """Pack ``command`` for the kernels (once per new command object; the loop holds one
-        command for a whole outer period, so its arrays must not change while it is held)."""
+        """Pack ``command`` for the kernels, once per new command object.
+
+        The loop holds one command for a whole outer period: its arrays must not change while it
+        is held (a method answers each step with a new Command).
+        """
         kernels.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
         self._alone = alone = command.q is not None and self.gains.joint_only  # (module notes)
         self._col_on = self.col_map is not None and not alone
@@ -205,7 +208,8 @@ class OperationalSpaceController:
         if command is not self._command:
             self._hold(command)
         col = self._collision(state)
-        return (state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col, self._active)
+        s = state
+        return (s.J, s.v, s.q, s.H, s.acc_drift, self._targets, col, self._active)
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
@@ -264,7 +268,8 @@ class OperationalSpaceController:
             self.col_map.terms_into(state, col)  # type: ignore[union-attr]
         ws = self._ws
         info = kernels.osc_accelerations(
-            ws, state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col, self._active
+            ws, state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col,
+            self._active,
         )
         if info != 0:
             n = self.robot.nv

@@ -92,8 +92,11 @@ class Observation:
         obstacles: np.ndarray,
         obstacle_radii: np.ndarray,
     ) -> Observation:
-        """The same observation, built without the finiteness check: for a caller that has
-        already found every value finite (the episode loop, 100 times a second)."""
+        """The same observation, built without the finiteness check.
+
+        For a caller that has already found every value finite (the episode loop, 100 times a
+        second).
+        """
         obs = object.__new__(cls)
         put = object.__setattr__
         put(obs, "t", t)

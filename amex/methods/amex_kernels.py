@@ -52,7 +52,7 @@ N_CONSTANTS = len(CONSTANTS)
 def _weights(knots: np.ndarray, n_basis: int, s: float) -> tuple:
     """``QuadraticBSpline.weights``: ``(i, b0, b1, b2, d0, d1, d2)`` at phase s."""
     u = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
-    mu = np.searchsorted(knots, u, side="right") - 1  # t[mu] <= u < t[mu + 1]
+    mu = int(np.searchsorted(knots, u, side="right")) - 1  # t[mu] <= u < t[mu + 1]
     last = n_basis - 1
     if mu > last:  # u == 1: the last non-empty span
         mu = last
@@ -83,7 +83,7 @@ def _norm(a: np.ndarray) -> float:
 
 @numba.njit(cache=True)
 def _finite(a: np.ndarray) -> bool:
-    for i in range(a.shape[0]):
+    for i in range(a.shape[0]):  # noqa: SIM110 (compiled: a plain loop)
         if not math.isfinite(a[i]):
             return False
     return True
@@ -109,8 +109,10 @@ def amex_update(
     from s >= 1 - end_margin the final approach (module :mod:`amex.methods.amex`).
 
     Args:
-        y, g: the measured task state and the goal, shape (m,).
-        y_star, yd_star: outputs, shape (m,).
+        y: the measured task state, shape (m,).
+        g: the goal, shape (m,).
+        y_star: output y*, shape (m,).
+        yd_star: output y_dot*, shape (m,).
         state: the scalars of :data:`STATE_FIELDS`, advanced.
         vectors: rows p, q (the plan's offset) and y_prev, shape (3, m), advanced.
         C: tau_ref's control points, zero-padded for the weight window, shape (N + pad, m).
@@ -135,10 +137,7 @@ def amex_update(
     gy = g - y
     dist_goal = _norm(gy)
     delta_g = state[5] / dist_goal if dist_goal > eps_goal else rate_max
-    if state[3] > eps_step:
-        delta_y = _norm(y - y_prev) / state[3]
-    else:
-        delta_y = 1.0
+    delta_y = _norm(y - y_prev) / state[3] if state[3] > eps_step else 1.0
     k = state[1]
     state[1] = k + 1.0
     y_prev[:] = y
@@ -168,7 +167,7 @@ def amex_update(
         return 0
     state[0] = state[8] = s
     s_t = s + ds_ref
-    if 1.0 < s_t:
+    if s_t > 1.0:
         s_t = 1.0
     state[4] = s_t  # the phase this step's command aims at
     i, w0, w1, w2, e0, e1, e2 = _weights(knots, n_basis, s)
