@@ -70,63 +70,85 @@ def pack_params(
     return params
 
 
+def targets_size(n: int) -> int:
+    """Length of the packed command targets of an n-joint controller (:func:`pack_targets`)."""
+    return 2 + 12 + 2 * n
+
+
+def pack_targets(
+    out: np.ndarray,
+    ty: np.ndarray | None,
+    tyd: np.ndarray | None,
+    tq: np.ndarray | None,
+    tqd: np.ndarray | None,
+) -> None:
+    """Pack a command's targets into ``out`` (:func:`targets_size`) for :func:`normal_equations`.
+
+    Layout: ``[has_y, has_q, y* (6), y_dot* (6), q* (n), q_dot* (n)]``; an absent target is a 0
+    flag (its values are then not read), an absent velocity is zero.
+    """
+    n = (out.shape[0] - 14) // 2
+    out[:] = 0.0
+    if ty is not None:
+        out[0] = 1.0
+        out[2:8] = ty
+        if tyd is not None:
+            out[8:14] = tyd
+    if tq is not None:
+        out[1] = 1.0
+        out[14 : 14 + n] = tq
+        if tqd is not None:
+            out[14 + n :] = tqd
+
+
 @numba.njit(cache=True)
 def normal_equations(  # per-step inputs as they come (nothing copied), constants in one record
-    A: np.ndarray,
-    b: np.ndarray,
+    ws: np.ndarray,
     J: np.ndarray,
     v: np.ndarray,
     q: np.ndarray,
     tcp_pose: np.ndarray,
     drift: np.ndarray,
-    ty: np.ndarray | None,
-    tyd: np.ndarray | None,
-    tq: np.ndarray | None,
-    tqd: np.ndarray | None,
-    col_phi: float,
-    Jc: np.ndarray,
+    targets: np.ndarray,
+    col: np.ndarray,
     params: np.ndarray,
 ) -> None:
-    """Fill ``A`` (n x n) and ``b`` (n,) with the normal equations of Eq. 4-6, in place.
-
-    A target of None leaves its task out; Numba compiles each combination apart, so the test
-    costs nothing at run time.
+    """Fill ``A = ws[:n]`` (n x n) and ``b = ws[n]`` with the normal equations of Eq. 4-6, in place.
 
     Args:
-        A: output (n, n), overwritten.
-        b: output (n,), overwritten.
+        ws: output (n + 1, n): A in the first n rows, b in the last, overwritten.
         J: TCP Jacobian (6, n), LOCAL_WORLD_ALIGNED rows (linear, angular).
         v: joint velocities (n,) [rad/s].
         q: joint positions (n,) [rad].
         tcp_pose: TCP pose (4, 4); column 3 is the position, column 2 the z-axis.
         drift: TCP classical acceleration at q_ddot = 0 (6,) (``J_dot v``).
-        ty: task target y* (6,) (position, axis), or None: no position and axis tasks.
-        tyd: its velocity y_dot* (6,) (None with ``ty``).
-        tq: joint target q* (n,), or None: no joint task.
-        tqd: its velocity q_dot* (n,) (None with ``tq``).
-        col_phi: collision penetration phi_col (the task is active when > 0).
-        Jc: its Jacobian (1, n).
+        targets: the command, packed by :func:`pack_targets`: the TCP tasks with y* and y_dot*
+            if ``has_y``, the joint task with q* and q_dot* if ``has_q``.
+        col: the collision task ``(phi_col, J_col)`` (1 + n,); active when phi_col > 0.
         params: the controller's constants, a :func:`params_dtype` record, shape (1,).
     """
     p = params[0]
     n = v.shape[0]
+    A = ws[:n]
+    b = ws[n]
     for i in range(n):
         for j in range(n):
             A[i, j] = 0.0
         A[i, i] = p.hdiag[i]
         b[i] = p.damping_velocity * v[i]
-    if ty is not None and tyd is not None:
-        _add_tcp_tasks(A, b, J, v, tcp_pose, drift, ty, tyd, p)
+    if targets[0] != 0.0:
+        _add_tcp_tasks(A, b, J, v, tcp_pose, drift, targets[2:8], targets[8:14], p)
     if p.damping_posture != 0.0:
         for i in range(n):
             b[i] += p.damping_posture * (p.q_rest[i] - q[i])
-    if tq is not None and tqd is not None:
+    if targets[1] != 0.0:
+        tq, tqd = targets[14 : 14 + n], targets[14 + n : 14 + 2 * n]
         c = p.joint_weight
         for i in range(n):
             A[i, i] += c
             b[i] += c * (p.joint_kp * (tq[i] - q[i]) + p.joint_kd * (tqd[i] - v[i]))
-    if col_phi > 0.0:
-        _add_collision_task(A, b, v, col_phi, Jc, p)
+    if col[0] > 0.0:
+        _add_collision_task(A, b, v, col[0], col[1:], p)
 
 
 @numba.njit(cache=True)
@@ -222,17 +244,17 @@ def _add_tcp_tasks(
 def _add_collision_task(
     A: np.ndarray, b: np.ndarray, v: np.ndarray, col_phi: float, Jc: np.ndarray, p: Any
 ) -> None:
-    """Add the collision task: target 0 penetration, drift neglected (CollisionMap)."""
+    """Add the collision task: target 0 penetration, drift neglected (CollisionMap); Jc (n,)."""
     n = v.shape[0]
     c = p.col_weight
     phid = 0.0
     for j in range(n):
-        phid += Jc[0, j] * v[j]
+        phid += Jc[j] * v[j]
     target = p.col_kp * (0.0 - col_phi) + p.col_kd * (0.0 - phid)
     for i in range(n):
         for j in range(n):
-            A[i, j] += c * Jc[0, i] * Jc[0, j]
-        b[i] += c * Jc[0, i] * target
+            A[i, j] += c * Jc[i] * Jc[j]
+        b[i] += c * Jc[i] * target
 
 
 @numba.njit(cache=True)
@@ -243,8 +265,13 @@ def cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> int:
         0 on success, else the 1-based index of the first non-positive pivot (LAPACK's
         ``info`` convention); ``x`` is then undefined.
     """
+    return _cholesky_solve(A, b, x, np.zeros(A.shape))
+
+
+@numba.njit(cache=True)
+def _cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray, L: np.ndarray) -> int:
+    """:func:`cholesky_solve` with the work space ``L`` (n, n) of the factor (upper part unread)."""
     n = b.shape[0]
-    L = np.zeros((n, n))
     for j in range(n):
         s = A[j, j]
         for k in range(j):
@@ -271,15 +298,45 @@ def cholesky_solve(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> int:
     return 0
 
 
+def workspace(n: int) -> np.ndarray:
+    """The work space of :func:`osc_accelerations` for n joints: A, b, x and the factor L."""
+    return np.zeros((2 * n + 2, n))
+
+
 @numba.njit(cache=True)
-def osc_accelerations(A: np.ndarray, b: np.ndarray, x: np.ndarray, *args) -> int:
-    """:func:`normal_equations` (``A``, ``b`` and ``args``) then :func:`cholesky_solve` into ``x``.
+def osc_accelerations(
+    ws: np.ndarray,
+    J: np.ndarray,
+    v: np.ndarray,
+    q: np.ndarray,
+    tcp_pose: np.ndarray,
+    drift: np.ndarray,
+    targets: np.ndarray,
+    col: np.ndarray,
+    params: np.ndarray,
+) -> int:
+    """:func:`normal_equations` into ``ws`` (:func:`workspace`), then the Cholesky solve.
+
+    ``ws`` rows: A (n), b (1), the solution x = q_ddot* (1), the factor L (n).
 
     Returns:
         the solve's ``info`` (0 on success).
     """
-    normal_equations(A, b, *args)
-    return cholesky_solve(A, b, x)
+    normal_equations(ws, J, v, q, tcp_pose, drift, targets, col, params)
+    n = v.shape[0]
+    return _cholesky_solve(ws[:n], ws[n], ws[n + 1], ws[n + 2 :])
+
+
+@numba.njit(cache=True)
+def clip_into(out: np.ndarray, x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """``out = min(max(x, lo), hi)`` element-wise (NaN stays NaN), as :func:`clip_inplace`."""
+    for i in range(x.shape[0]):
+        xi = x[i]
+        if xi < lo[i]:
+            xi = lo[i]
+        elif xi > hi[i]:
+            xi = hi[i]
+        out[i] = xi
 
 
 @numba.njit(cache=True)

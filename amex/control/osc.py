@@ -160,9 +160,13 @@ class OperationalSpaceController:
         self._lo = -robot.torque_limit
         self._hi = robot.torque_limit
         n = robot.nv
-        self._zeros6 = np.zeros(6)
-        self._zero_row = np.zeros((1, n))
-        self._A, self._b = np.empty((n, n)), np.empty(n)  # kernel work space
+        self._ws = kernels.workspace(n)  # A, b, x = q_ddot*, L
+        self._x = self._ws[n + 1]
+        self._targets = np.zeros(kernels.targets_size(n))  # the held command, packed
+        self._command: Command | None = None  # the command packed into _targets
+        self._alone = self._col_on = False
+        self._col = np.zeros(1 + n)  # the collision task's (phi, J), written per step
+        self._no_col = np.zeros(1 + n)
         g, H = gains, self.regularizer()
         tasks = (g.pos, g.dir, g.joint, g.col)
         self._params = kernels.pack_params(
@@ -170,6 +174,7 @@ class OperationalSpaceController:
         )
         no_damping = PD(0.0, 0.0, 0.0)  # the joint task alone (module notes)
         self._params_alone = kernels.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
+        self._active = self._params  # the record of the held command
 
     def regularizer(self) -> np.ndarray:
         """The diagonal of H in Eq. 4, shape (n,)."""
@@ -179,33 +184,32 @@ class OperationalSpaceController:
             return g.reg * np.asarray(metric, dtype=float)
         return np.full(n, g.reg)
 
+    def _hold(self, command: Command) -> None:
+        """Pack ``command`` for the kernels, once per new command object.
+
+        The loop holds one command for a whole outer period: its arrays must not change while it
+        is held (a method answers each step with a new Command).
+        """
+        kernels.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
+        self._alone = alone = command.q is not None and self.gains.joint_only  # (module notes)
+        self._col_on = self.col_map is not None and not alone
+        self._active = self._params_alone if alone else self._params
+        self._command = command
+
+    def _collision(self, state: RobotState) -> np.ndarray:
+        """The collision task's ``(phi, J)`` at ``state`` for the held command."""
+        if not self._col_on:
+            return self._no_col
+        self.col_map.terms_into(state, self._col)  # type: ignore[union-attr]
+        return self._col
+
     def _kernel_args(self, state: RobotState, command: Command) -> tuple:
-        """The arguments of the compiled kernels after ``(A, b[, x])`` (module :mod:`.kernels`)."""
-        ty = tyd = tq = tqd = None  # None: the task is off
-        if command.y is not None:
-            ty, tyd = command.y, command.yd if command.yd is not None else self._zeros6
-        if command.q is not None:
-            tq, tqd = command.q, command.qd if command.qd is not None else self._zeros
-        alone = tq is not None and self.gains.joint_only  # the joint task alone (module notes)
-        col_phi, Jc = 0.0, self._zero_row
-        if self.col_map is not None and not alone:
-            terms = self.col_map.evaluate(state)
-            col_phi, Jc = float(terms.phi[0]), terms.J
-        params = self._params_alone if alone else self._params
-        return (
-            state.J,
-            state.v,
-            state.q,
-            state.H,
-            state.acc_drift,
-            ty,
-            tyd,
-            tq,
-            tqd,
-            col_phi,
-            Jc,
-            params,
-        )
+        """The arguments of the compiled kernels after their outputs (module :mod:`.kernels`)."""
+        if command is not self._command:
+            self._hold(command)
+        col = self._collision(state)
+        s = state
+        return (s.J, s.v, s.q, s.H, s.acc_drift, self._targets, col, self._active)
 
     def build_objective(self, state: RobotState, command: Command) -> Objective:
         """The normal equations of Eq. 4-6 for ``command`` at ``state`` (pure; no solve).
@@ -215,9 +219,10 @@ class OperationalSpaceController:
         system map by map, for tests.
         """
         n = self.robot.nv
-        A, b = np.empty((n, n)), np.empty(n)
-        kernels.normal_equations(A, b, *self._kernel_args(state, command))
-        return Objective(A, b)
+        ws = np.empty((n + 1, n))
+        self._command = None  # packed afresh: the command's arrays may have changed
+        kernels.normal_equations(ws, *self._kernel_args(state, command))
+        return Objective(ws[:n].copy(), ws[n].copy())
 
     def build_objective_reference(self, state: RobotState, command: Command) -> Objective:
         """The same normal equations as :meth:`build_objective`, one task map at a time."""
@@ -251,24 +256,45 @@ class OperationalSpaceController:
         Raises:
             SolverError: if the normal equations are not positive definite (e.g. a NaN state).
         """
-        A, b, x = self._A, self._b, np.empty(self.robot.nv)
-        info = kernels.osc_accelerations(A, b, x, *self._kernel_args(state, command))
+        return self._solve(state, command).copy()
+
+    def _solve(self, state: RobotState, command: Command) -> np.ndarray:
+        """:meth:`accelerations` into the work space (a view, overwritten by the next call)."""
+        if command is not self._command:
+            self._hold(command)
+        col = self._no_col
+        if self._col_on:
+            col = self._col
+            self.col_map.terms_into(state, col)  # type: ignore[union-attr]
+        ws = self._ws
+        info = kernels.osc_accelerations(
+            ws, state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col,
+            self._active,
+        )
         if info != 0:
+            n = self.robot.nv
             raise SolverError(
                 f"OSC normal equations not positive definite (info={info})",
-                Objective(A.copy(), b.copy()),
+                Objective(ws[:n].copy(), ws[n].copy()),
             )
-        return x
+        return self._x
 
     def torque(self, state: RobotState, command: Command) -> np.ndarray:
         """Joint torques ``tau = M q_ddot* + h``, clipped to the limits, shape (7,) [N m].
 
         ``M q_ddot + h`` is evaluated by Pinocchio's RNEA in one pass (no mass matrix formed).
         """
-        qdd = self.accelerations(state, command)
+        qdd = self._solve(state, command)
         tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
         kernels.clip_inplace(tau, self._lo, self._hi)
         return tau
+
+    def torque_into(self, state: RobotState, command: Command, out: np.ndarray) -> np.ndarray:
+        """:meth:`torque` written into ``out`` (e.g. the simulator's applied forces); ``out``."""
+        qdd = self._solve(state, command)
+        tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
+        kernels.clip_into(out, tau, self._lo, self._hi)
+        return out
 
 
 def solve_objective(objective: Objective) -> np.ndarray:

@@ -14,6 +14,7 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
+from amex.control import collision_kernels
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.core.errors import ConfigError
@@ -96,6 +97,30 @@ class CollisionMap(TaskMap):
     def __init__(self, collision: CollisionModel, margin: float) -> None:
         self.collision = collision
         self.margin = float(margin)
+        self._data: object = None
+        self._J_world = np.zeros((6, collision.robot.nv))
+
+    def _world_jacobians(self, state: RobotState) -> np.ndarray:
+        """Pinocchio's world-frame joint Jacobians of ``state`` (a view of ``data.J``)."""
+        if state.data is not self._data:
+            self._data, self._J_world = state.data, state.data.J
+        return self._J_world
+
+    def terms_into(self, state: RobotState, out: np.ndarray) -> bool:
+        """The compiled :meth:`evaluate`: ``out = (phi, J)``, shape (1 + n,); whether phi is on.
+
+        Out of the margin (the common step) only ``out[0] = 0`` is written.
+        """
+        c = self.collision
+        if c.update(state.data, state) >= self.margin:
+            out[0] = 0.0
+            return False
+        if state.data is not self._data:
+            self._data, self._J_world = state.data, state.data.J
+        collision_kernels.hinge_terms(
+            out, c.table, self._J_world, c.support, c.pair_obstacle, c.centers, self.margin
+        )
+        return True
 
     def evaluate(self, state: RobotState) -> TaskTerms:
         """See :class:`TaskMap`; all-zero terms when no pair is inside the margin."""
@@ -159,6 +184,20 @@ class ProxyMap(CollisionMap):
             )
         self.reach = [self.margin + 1.5 * (float(r) + obstacle_radius) for r in radii]  # a_p
         self.centers = [c.placement.translation.copy() for c in caps]  # in the joint frames
+        self._reach = np.array(self.reach)
+
+    def terms_into(self, state: RobotState, out: np.ndarray) -> bool:
+        """See :meth:`CollisionMap.terms_into`."""
+        c = self.collision
+        if c.update(state.data, state) >= self.margin:
+            out[0] = 0.0
+            return False
+        J_world = self._world_jacobians(state)
+        collision_kernels.proxy_terms(
+            out, c.table, c.placements, J_world, c.support, c.pair_obstacle, c.pair_arm,
+            c.centers, self._reach, self.margin,
+        )  # fmt: skip
+        return True
 
     def evaluate(self, state: RobotState) -> TaskTerms:
         """See :class:`TaskMap`; all-zero terms when no pair is inside the margin."""

@@ -56,7 +56,7 @@ def require_finite(**values: Any) -> None:
             raise InputError(f"non-finite {name}: {np.array2string(a, threshold=8)}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class Observation:
     """What a method measures at one outer step.
 
@@ -79,6 +79,35 @@ class Observation:
     goal: np.ndarray
     obstacles: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     obstacle_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @classmethod
+    def prechecked(
+        cls,
+        t: float,
+        q: np.ndarray,
+        qd: np.ndarray,
+        y: np.ndarray,
+        yd: np.ndarray,
+        goal: np.ndarray,
+        obstacles: np.ndarray,
+        obstacle_radii: np.ndarray,
+    ) -> Observation:
+        """The same observation, built without the finiteness check.
+
+        For a caller that has already found every value finite (the episode loop, 100 times a
+        second).
+        """
+        obs = object.__new__(cls)
+        put = object.__setattr__
+        put(obs, "t", t)
+        put(obs, "q", q)
+        put(obs, "qd", qd)
+        put(obs, "y", y)
+        put(obs, "yd", yd)
+        put(obs, "goal", goal)
+        put(obs, "obstacles", obstacles)
+        put(obs, "obstacle_radii", obstacle_radii)
+        return obs
 
     def __post_init__(self) -> None:
         """Reject non-finite values where they enter: no method ever sees one (InputError)."""

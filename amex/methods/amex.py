@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from amex.core.types import PD, Command, Observation, require_finite
+from amex.methods.amex_kernels import STATE_FIELDS, amex_update
 from amex.methods.base import Method, MethodConfig, invalid
 from amex.plan.spline import QuadraticBSpline, WarpedSpline, max_sample_error
 
@@ -180,39 +181,106 @@ class AMEX(Method):
         self._X[0] = self.g_ref
         self._X_eval = self._X[1:]
         self._D = np.empty((2, m))  # g_ref - tau_ref(s_t), tau_ref(s_t) - tau_ref(s)
-        self._y_prev = np.zeros(m)
+        # the execution's state, shared by the compiled update and the numpy oracle:
+        # the plan's offset p and slope q and the previous y as rows of one array, the scalars
+        # (amex_kernels.STATE_FIELDS) in another
+        self._vectors = np.zeros((3, m))
+        self.plan.p, self.plan.q, self._y_prev = self._vectors
+        self._state = np.zeros(len(STATE_FIELDS))
+        self._consts = np.array(
+            [
+                self.ds_ref,
+                self.warmup_steps,
+                self.rate_min,
+                self.rate_max,
+                self.eps_goal,
+                self.eps_step,
+                self.eps_tangent,
+                self.end_margin,
+                self.end_distance,
+                self.approach_rate,
+                self.peak_speed,
+                self.dt,
+                float(self.secant),
+                self.reference.n_control,
+                *self.g_ref,
+            ]
+        )
+        self._knots = self.reference.knots
+        self._m = m
         self.restart()
 
     # ----------------------------------------------------------------------------- numpy API
     def restart(self) -> None:
         """Start a new execution: s = 0, tau_plan = tau_ref (Algorithm 1, initialization)."""
         self.plan.reset()
-        self._s = 0.0
-        self._k = 0  # updates so far
-        self._final = False
-        self._step_prev = 0.0  # ||y*_prev - y_prev||; 0: no command yet
-        self._aimed = 0.0  # phase the last command aimed at
+        st = self._state
+        st[:] = 0.0  # s, updates so far, final approach, ||y*_prev - y_prev||, aimed phase, ...
         r = self.g_ref - self.reference.control_points[0]
-        self._ref_remaining = math.sqrt(np.dot(r, r))  # ||g_ref - tau_ref(s)||
-        self._last: AMEXTarget | None = None
+        st[5] = math.sqrt(np.dot(r, r))  # ||g_ref - tau_ref(s)||
+        self._outputs: tuple[np.ndarray, np.ndarray] | None = None  # the last y*, y_dot*
 
     @property
     def s(self) -> float:
         """The phase, in [0, 1]."""
-        return self._s
+        return float(self._state[0])
 
     @property
     def final_approach(self) -> bool:
         """Whether the phase reached 1 and the final approach to g runs."""
-        return self._final
+        return bool(self._state[2])
+
+    def _advance(self, y: np.ndarray, g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The compiled update (:func:`amex.methods.amex_kernels.amex_update`): y*, y_dot*."""
+        y = np.ascontiguousarray(y, dtype=np.float64)
+        g = np.ascontiguousarray(g, dtype=np.float64)
+        m = self._m
+        y_star, yd_star = np.empty(m), np.empty(m)
+        if amex_update(
+            y, g, y_star, yd_star, self._state, self._vectors, self._C, self._knots, self._consts
+        ):
+            require_finite(y=y, g=g)  # raises, naming the bad input
+        self._outputs = y_star, yd_star
+        return y_star, yd_star
+
+    def _target(self) -> AMEXTarget | None:
+        """The last update's :class:`AMEXTarget` (None before the first)."""
+        if self._outputs is None:
+            return None
+        st = self._state
+        return AMEXTarget(*self._outputs, float(st[8]), float(st[6]), float(st[7]))
 
     def update(self, y: np.ndarray, g: np.ndarray) -> AMEXTarget:
         """One outer step of Algorithm 1 (steps 2-4) for task state y and goal g, shapes (m,).
+
+        Compiled (:mod:`amex.methods.amex_kernels`); :meth:`update_reference` is the same in
+        numpy, operation for operation.
+
+        Raises:
+            InputError: y or g holds a NaN or an infinity; AMEX is left as it was.
+        """
+        self._advance(y, g)
+        return self._target()  # type: ignore[return-value]
+
+    def update_reference(self, y: np.ndarray, g: np.ndarray) -> AMEXTarget:
+        """:meth:`update` in numpy (the test oracle of the compiled update).
 
         Raises:
             InputError: y or g holds a NaN or an infinity; AMEX is left as it was.
         """
         require_finite(y=y, g=g)
+        st = self._state
+        self._s, self._k, self._final = float(st[0]), int(st[1]), bool(st[2])
+        self._step_prev, self._aimed, self._ref_remaining = float(st[3]), float(st[4]), float(st[5])
+        target = self._update_numpy(y, g)
+        st[0], st[1], st[2] = self._s, self._k, float(self._final)
+        st[3], st[4], st[5] = self._step_prev, self._aimed, self._ref_remaining
+        st[6], st[7], st[8] = target.delta_g, target.delta_y, target.s
+        self._outputs = target.y_star, target.yd_star
+        return target
+
+    def _update_numpy(self, y: np.ndarray, g: np.ndarray) -> AMEXTarget:
+        """The body of :meth:`update_reference`, on the scalars as attributes."""
         # Eq. 8 factors, guarded; computed every step for the log, used after the warm-up.
         gy = g - y
         dist_goal = math.sqrt(np.dot(gy, gy))
@@ -276,9 +344,7 @@ class AMEX(Method):
             length = dist_goal
         self._step_prev = length
         step = direction * (length / norm_dir)
-        target = AMEXTarget(y + step, step * (1.0 / self.dt), s, delta_g, delta_y)
-        self._last = target
-        return target
+        return AMEXTarget(y + step, step * (1.0 / self.dt), s, delta_g, delta_y)
 
     def _approach(
         self, y: np.ndarray, gy: np.ndarray, delta_g: float, delta_y: float
@@ -292,9 +358,7 @@ class AMEX(Method):
             v *= self.peak_speed / speed
             speed = self.peak_speed
         self._step_prev = speed * self.dt
-        target = AMEXTarget(y + self.dt * v, v, 1.0, delta_g, delta_y)
-        self._last = target
-        return target
+        return AMEXTarget(y + self.dt * v, v, 1.0, delta_g, delta_y)
 
     # ----------------------------------------------------------------------------- Method
     def reset(self, obs: Observation) -> None:
@@ -303,12 +367,12 @@ class AMEX(Method):
 
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`: :meth:`update` with the measured ``obs.y`` and ``obs.goal``."""
-        target = self.update(obs.y, obs.goal)
-        return Command(y=target.y_star, yd=target.yd_star)
+        y_star, yd_star = self._advance(obs.y, obs.goal)
+        return Command(y=y_star, yd=yd_star)
 
     def internals(self) -> dict[str, Any]:
         """Phase s, Eq. 8 factors delta_g and delta_y, targets y_star and yd_star (last update)."""
-        return target_internals(self._last, self._s)
+        return target_internals(self._target(), self.s)
 
 
 def target_internals(last: AMEXTarget | None, s: float) -> dict[str, Any]:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -38,6 +39,13 @@ from amex.sim.metrics import (
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
 from amex.sim.simulation import MismatchConfig, Simulation
+
+
+class Probe(Protocol):
+    """Sees the simulator at the start of every inner step (benchmarks; never in a run)."""
+
+    def __call__(self, k: int, data: mujoco.MjData) -> None:
+        """Called before inner step ``k`` reads the state from ``data``."""
 
 
 class _Episode:
@@ -144,6 +152,7 @@ def run_episode(
     mismatch: MismatchConfig | None = None,
     disturbance: DisturbanceConfig | None = None,
     reference_path: np.ndarray | None = None,
+    probe: Probe | None = None,
 ) -> EpisodeResult:
     """Execute ``method`` in ``scenario`` and measure it (see :mod:`amex.sim.metrics`).
 
@@ -161,6 +170,8 @@ def run_episode(
             the paper's controller); see :mod:`amex.control.disturbance`.
         reference_path: the reference plan's TCP positions, shape (N + 1, 3) [m], for
             ``plan_fidelity`` (NaN without it).
+        probe: called as ``probe(k, data)`` at the start of every inner step ``k``, with the
+            simulator's ``MjData`` (``amex.app.bench_inner`` times the steps with it); None in runs.
     """
     episode = _Episode(
         robot,
@@ -174,13 +185,13 @@ def run_episode(
         disturbance,
         reference_path,
     )
-    result = _run(episode, recorder)
+    result = _run(episode, recorder, probe)
     if recorder is not None:
         recorder.finish(result)
     return result
 
 
-def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
+def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> EpisodeResult:
     """The two-rate loop (module notes), one function: its locals are the 1 kHz loop's state.
 
     Longer than 80 lines on purpose: splitting the inner step into calls would cost attribute
@@ -190,6 +201,8 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
     sim, sensor, collision, osc, inner = e.sim, e.sensor, e.collision, e.osc, e.inner
     pdata = robot.model.createData()
     mjm, mjd = sim.model, sim.data
+    qpos, qvel, qfrc, mj_step = mjd.qpos, mjd.qvel, mjd.qfrc_applied, mujoco.mj_step
+    plain = inner is osc  # no disturbance compensation: the torque goes straight into MuJoCo
     substeps, dt, n_steps = loop.substeps, e.dt, e.n_steps
     speed_limit = loop.speed_limit_factor * robot.velocity_limit
     goal_axis = scenario.goal_axis
@@ -221,11 +234,13 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
     state: RobotState | None = None
     try:
         for k in range(n_steps + 1):
+            if probe is not None:
+                probe(k, mjd)
             t = k * dt
             outer = k % substeps == 0
             # copies on outer steps (observations and logs keep them), views otherwise
-            q = mjd.qpos.copy() if outer else mjd.qpos
-            v = mjd.qvel.copy() if outer else mjd.qvel
+            q = qpos.copy() if outer else qpos
+            v = qvel.copy() if outer else qvel
             state = RobotState(robot, pdata, q, v)
             q_history[k] = q
             tx, ty, tz = tcp = state.y_list[:3]
@@ -251,15 +266,15 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
             if outer:
                 trace.outer(state, collision, pdata)
                 seen = goal if sensor is None else sensor.measure(t)
-                obs = Observation(
-                    t=t,
-                    q=q,
-                    qd=v,
-                    y=state.y if seen_y is None else seen_y,
-                    yd=state.yd if seen_yd is None else seen_yd,
-                    goal=np.concatenate([seen, goal_axis]),
-                    obstacles=obstacles,
-                    obstacle_radii=radii,
+                obs = _observe(
+                    t,
+                    q,
+                    v,
+                    state.y if seen_y is None else seen_y,
+                    state.yd if seen_yd is None else seen_yd,
+                    np.concatenate([seen, goal_axis]),
+                    obstacles,
+                    radii,
                 )
                 command = _method_step(method, obs, k == 0, trace, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
@@ -271,17 +286,20 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
             if kinematic:
                 qacc = osc.accelerations(state, command)
                 tau = no_torque
-                kernels.euler_inplace(mjd.qpos, mjd.qvel, qacc, dt)
+                kernels.euler_inplace(qpos, qvel, qacc, dt)
                 mjd.time += dt
                 if detect_contacts:
                     mujoco.mj_kinematics(mjm, mjd)
                     mujoco.mj_collision(mjm, mjd)
             else:
-                tau = inner.torque(state, command)
-                mjd.qfrc_applied[:] = tau
-                mujoco.mj_step(mjm, mjd)
+                if plain:
+                    tau = osc.torque_into(state, command, qfrc)
+                else:
+                    tau = inner.torque(state, command)
+                    qfrc[:] = tau
+                mj_step(mjm, mjd)
                 qacc = mjd.qacc
-            sum_sq_acc += float(qacc @ qacc)
+            sum_sq_acc += float(qacc.dot(qacc))  # (the same BLAS ddot as qacc @ qacc)
             if mjd.ncon:
                 collided = True
             if outer:  # NaNs persist, so checking at the outer rate loses nothing
@@ -298,6 +316,30 @@ def _run(e: _Episode, recorder: Recorder | None) -> EpisodeResult:
     if state is not None:
         trace.axis = state.y_list[3:6]
     return e.result(k, t, distance, sum_sq_acc, collided, failure)
+
+
+def _observe(
+    t: float,
+    q: np.ndarray,
+    v: np.ndarray,
+    y: np.ndarray,
+    yd: np.ndarray,
+    goal: np.ndarray,
+    obstacles: np.ndarray,
+    radii: np.ndarray,
+) -> Observation:
+    """The outer step's :class:`Observation`, its finiteness checked by one sum of squares.
+
+    Time, obstacles and radii are finite by construction (the scenario's motions). Where the sum
+    of squares of the other fields is not finite (a NaN, an infinity, or values too large to
+    square), the observation is built with its own checks, which raise the same
+    :class:`~amex.core.errors.InputError` naming the field as before, or pass huge finite values.
+    """
+    if math.isfinite(
+        float(q @ q) + float(v @ v) + float(y @ y) + float(yd @ yd) + float(goal @ goal)
+    ):
+        return Observation.prechecked(t, q, v, y, yd, goal, obstacles, radii)
+    return Observation(t, q, v, y, yd, goal, obstacles, radii)
 
 
 def _method_step(

@@ -159,4 +159,4 @@ class Trace:
         self.tcp.append(state.y_list[:3])
         self.axis = state.y_list[3:6]
         if collision is not None:
-            self.clearance = min(self.clearance, collision.min_distance(data))
+            self.clearance = min(self.clearance, collision.min_distance(data, state))

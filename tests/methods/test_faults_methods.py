@@ -148,3 +148,14 @@ def test_amex_refuses_a_reference_that_does_not_move(plan):
     still = ReferencePlan(q=plan.q, y=np.repeat(plan.y[:1], len(plan.y), axis=0), dt=plan.dt)
     with pytest.raises(ConfigError, match="must move"):
         AMEX(still, dt=DT)
+
+
+def test_a_prechecked_observation_equals_a_checked_one(plan, robot):
+    good = _obs(plan, robot, 3)
+    values = [getattr(good, f.name) for f in dataclasses.fields(Observation)]
+    fast = Observation.prechecked(*values)
+    assert type(fast) is Observation and fast == good or all(
+        getattr(fast, f.name) is getattr(good, f.name) for f in dataclasses.fields(Observation)
+    )
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fast.t = 1.0  # type: ignore[misc]
