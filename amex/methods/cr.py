@@ -144,6 +144,17 @@ class JointTarget(NamedTuple):
     qd_star: np.ndarray
 
 
+def _columns(index: np.ndarray) -> np.ndarray | slice:
+    """``index`` as a slice where it is a run of consecutive integers (views, not copies).
+
+    ``index`` comes from :func:`~amex.plan.knots.whole_knots`: evenly spaced, repeats only where
+    clamped at either end, so a span of ``len - 1`` without repeats at the ends is such a run.
+    """
+    first, last, count = int(index[0]), int(index[-1]), len(index)
+    ends = count < 3 or (int(index[1]) == first + 1 and int(index[-2]) == last - 1)
+    return slice(first, last + 1) if last - first == count - 1 and ends else index
+
+
 class CR(Method):
     """Continuous replanning (see the module notes).
 
@@ -172,7 +183,7 @@ class CR(Method):
         dt: float = 0.01,
         robot: RobotModel | None = None,
     ) -> None:
-        from amex.plan.optimizer import TrajectoryCosts, batch_kinematics
+        from amex.plan.optimizer import CompiledAssembly, TrajectoryCosts, batch_kinematics
 
         super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
         c, robot, metric = self.config, self.robot, plan.metric
@@ -181,6 +192,7 @@ class CR(Method):
         self.costs = TrajectoryCosts.from_weights(c, metric, collision_cost=form)
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
+        self.assembly = CompiledAssembly(robot)  # the solver's buffers, kept between steps
         self.reference_q = Q
         self.reference_dt = float(plan.dt)
         self.duration = (len(Q) - 1) * self.reference_dt
@@ -253,7 +265,7 @@ class CR(Method):
         else:  # a shift by whole knots: the last solution's frames at them are still right
             q_init = self._knots[index]
             if self._frames is not None and index[1] >= 1:
-                frames = self._frames.take(index[1:] - 1)  # frames hold the free knots 1..T
+                frames = self._frames.take(_columns(index[1:] - 1))  # of the free knots 1..T
         solution = solve_trajectory(
             self.robot,
             problem,
@@ -262,6 +274,7 @@ class CR(Method):
             tolerance=self.tolerance,
             damping=self.damping,
             init_frames=frames,
+            assembly=self.assembly,
         )
         self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
         self._frames = solution.frames

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from amex.core.errors import ConfigError
@@ -12,7 +13,42 @@ def resample_knots(knots: np.ndarray, offset: float, stride: float, count: int) 
 
     Indices are clamped to ``[0, len(knots) - 1]`` (the last knot repeats past the end); indices
     within 1e-9 of an integer take that row exactly (the usual case: a shift by whole knots).
+    Blends are one compiled loop (CR's every target), bit for bit :func:`resample_knots_numpy`.
     """
+    index = whole_knots(len(knots), offset, stride, count)
+    if index is not None:  # whole knots: no blending
+        return knots[index]
+    knots = np.asarray(knots, dtype=float)
+    out = np.empty((count, knots.shape[1]))
+    _blend_rows(knots, float(offset), float(stride), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _blend_rows(knots: np.ndarray, offset: float, stride: float, out: np.ndarray) -> None:
+    """:func:`resample_knots_numpy`'s blend, row ``k`` of ``out`` at index ``offset + k stride``."""
+    last = knots.shape[0] - 1
+    for k in range(out.shape[0]):
+        u = offset + stride * float(k)
+        if u == u:  # numpy's clip: NaN stays, max then min, -0.0 -> 0.0
+            u = u if u > 0.0 else 0.0
+            u = u if u < float(last) else float(last)
+        nearest = np.rint(u)
+        if abs(u - nearest) <= 1e-9:
+            u = nearest
+        if last == 0:
+            out[k] = knots[0]
+            continue
+        i = min(int(np.floor(u)), max(last - 1, 0))
+        a = u - float(i)
+        for j in range(knots.shape[1]):
+            out[k, j] = (1.0 - a) * knots[i, j] + a * knots[i + 1, j]
+
+
+def resample_knots_numpy(
+    knots: np.ndarray, offset: float, stride: float, count: int
+) -> np.ndarray:
+    """:func:`resample_knots` in numpy (the reference of the compiled blend)."""
     last = len(knots) - 1
     index = whole_knots(len(knots), offset, stride, count)
     if index is not None:  # whole knots: no blending
