@@ -27,7 +27,7 @@ from amex.core.errors import ConfigError
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.knots import resample_knots, whole_knots
+from amex.plan.knots import resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
@@ -258,14 +258,17 @@ class CR(Method):
         )
         offset = (obs.t - self._knots_t0) / self._knots_dt
         stride = self.knot_dt / self._knots_dt
-        index = whole_knots(len(self._knots), offset, stride, steps + 1)
+        rows = whole_knot_rows(len(self._knots), offset, stride, steps + 1)
         frames = None
-        if index is None:
+        if rows is None:
             q_init = resample_knots(self._knots, offset, stride, steps + 1)
         else:  # a shift by whole knots: the last solution's frames at them are still right
-            q_init = self._knots[index]
-            if self._frames is not None and index[1] >= 1:
-                frames = self._frames.take(_columns(index[1:] - 1))  # of the free knots 1..T
+            q_init = self._knots[rows]  # a view for a slice: solutions are new arrays
+            if self._frames is not None:  # they hold the free knots 1..T: row i is column i - 1
+                if isinstance(rows, slice):
+                    frames = self._frames.take(slice(rows.start, rows.stop - 1))
+                elif rows[1] >= 1:
+                    frames = self._frames.take(_columns(rows[1:] - 1))
         solution = solve_trajectory(
             self.robot,
             problem,

@@ -78,6 +78,18 @@ def whole_knots(length: int, offset: float, stride: float, count: int) -> np.nda
     return index
 
 
+def whole_knot_rows(
+    length: int, offset: float, stride: float, count: int
+) -> slice | np.ndarray | None:
+    """:func:`whole_knots`' rows, as a slice where they are consecutive and unclamped (views)."""
+    first, step = round(offset), round(stride)
+    if abs(offset - first) > 1e-9 or abs(stride - step) > 1e-9:
+        return None
+    if step == 1 and first >= 0 and first + count <= length:
+        return slice(first, first + count)
+    return whole_knots(length, offset, stride, count)
+
+
 def shift_warm_start(solution_q: np.ndarray, steps_new: int) -> np.ndarray:
     """Warm start for the next replanning step (CR): drop the first knot, keep ``steps_new``.
 

@@ -23,8 +23,7 @@ from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinem
 from amex.plan.kinematics_kernels import near_pairs
 from amex.plan.optimizer.assembly_kernels import (
     acceleration_residuals,
-    damped_band,
-    gradient_rhs,
+    damped_system,
     take_step,
     wake_pairs,
 )
@@ -37,6 +36,9 @@ from amex.robot import RobotModel
 __all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized"]
 
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
+_NO_ROWS = np.zeros((0, 0))
+#: An iterate's collision fields without collision term: r_col, cap, obs, knot, r_near.
+_NONE = (np.zeros((0, 0, 0)), _NO_PAIRS, _NO_PAIRS, _NO_PAIRS, np.zeros(0))
 
 
 class Iterate(NamedTuple):
@@ -70,19 +72,32 @@ class Iterate(NamedTuple):
 
 
 class Linearized(NamedTuple):
-    """What the damped steps at an iterate need: ``-2 J^T r`` and the pieces of ``2 J^T J``.
+    """What the damped steps at an iterate need beyond its residuals (the products numpy makes).
 
     Attributes:
-        rhs: ``-2 J^T r``, shape (nT,).
-        final_block: ``2 J_fin^T J_fin``, shape (m, m), from row/column ``final_first``.
-        final_first: its first row.
+        final_JtJ: ``J_fin^T J_fin``, shape (m, m), from row/column ``final_first``.
+        final_Jtr: ``J_fin^T r_fin``, shape (m,).
+        final_first: the first row of the final block.
         J_col: the near pairs' collision Jacobian rows, shape (P, n).
     """
 
-    rhs: np.ndarray
-    final_block: np.ndarray
+    final_JtJ: np.ndarray
+    final_Jtr: np.ndarray
     final_first: int
     J_col: np.ndarray
+
+
+class _Constants(NamedTuple):
+    """What a solve's costs and knot spacing fix (worked out once per costs object and dt)."""
+
+    s_acc: np.ndarray  # acceleration residual factor per joint (n,)
+    s_acc2: np.ndarray  # 2 s_acc (n,)
+    band_scale: float  # 2 w_acc / dt^3
+    metric: np.ndarray  # diag(H) (n,), or empty
+    final_weights: np.ndarray  # square roots of the four final weights
+    margin: float  # collision margin [m]
+    s_col: float  # sqrt(w_col)
+    collision: bool  # a collision term at all (w_col > 0 and capsules)
 
 
 class CompiledAssembly:
@@ -98,98 +113,123 @@ class CompiledAssembly:
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.data = robot.model.createData()
-        self._band = np.zeros((1, 0), order="F")
+        self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
+        self._constants: tuple[object, float, _Constants] | None = None
 
-    def band(self, width: int, size: int) -> np.ndarray:
-        """A Fortran-ordered (width, size) buffer (its entries are overwritten by each use)."""
-        buffer = self._band
-        if buffer.shape[0] != width or buffer.shape[1] < size:
-            buffer = self._band = np.empty((width, size), order="F")
-        return buffer[:, :size]
+    def buffers(self, width: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """A Fortran-ordered (width, size) band and a (size,) vector, overwritten by each use."""
+        band, rhs = self._band, self._rhs
+        if band.shape[0] != width or band.shape[1] < size:
+            band = self._band = np.empty((width, size), order="F")
+            rhs = self._rhs = np.empty(size)
+        return band[:, :size], rhs[:size]
 
     def begin(self, problem: TrajectoryProblem) -> CompiledSolve:
-        """The solve of ``problem`` (its constants worked out once)."""
-        return CompiledSolve(self, problem)
+        """The solve of ``problem``."""
+        costs, dt = problem.costs, float(problem.dt)
+        known = self._constants
+        if known is None or known[0] is not costs or known[1] != dt:
+            known = self._constants = (costs, dt, self._work_out(problem))
+        return CompiledSolve(self, problem, known[2])
+
+    def _work_out(self, problem: TrajectoryProblem) -> _Constants:
+        c, dt, n = problem.costs, float(problem.dt), self.robot.model.nv
+        s_acc = acceleration_scale(c, dt)
+        w = c.weights
+        return _Constants(
+            np.full(n, s_acc) if isinstance(s_acc, float) else s_acc,
+            np.full(n, 2.0 * s_acc) if isinstance(s_acc, float) else 2.0 * s_acc,
+            2.0 * float(w.acceleration) / dt**3,
+            np.asarray(c.metric, dtype=float),
+            final_weights(c),
+            float(w.collision_margin),
+            math.sqrt(w.collision),
+            bool(self.robot.capsules) and w.collision > 0.0,
+        )
 
 
 class CompiledSolve:
     """The compiled iteration of one problem (:class:`CompiledAssembly`; module notes)."""
 
-    def __init__(self, assembly: CompiledAssembly, problem: TrajectoryProblem) -> None:
-        c, dt, n = problem.costs, float(problem.dt), assembly.robot.model.nv
-        self.assembly, self.problem, self.n = assembly, problem, n
-        s_acc = acceleration_scale(c, dt)
-        self.s_acc = np.full(n, s_acc) if isinstance(s_acc, float) else s_acc
-        self.s_acc2 = np.full(n, 2.0 * s_acc) if isinstance(s_acc, float) else 2.0 * s_acc
-        self.band_scale = 2.0 * float(c.weights.acceleration) / dt**3
-        self.metric = np.asarray(c.metric, dtype=float)
-        robot, w = assembly.robot, c.weights
-        self.collides = bool(len(problem.obstacle_radii) and robot.capsules and w.collision > 0.0)
-        self.margin = float(w.collision_margin)
-        self.s_col = math.sqrt(w.collision)
-        self.shape = (len(robot.capsules), len(problem.obstacle_radii), problem.steps)
-        self.final_weights = final_weights(c)
+    def __init__(
+        self, assembly: CompiledAssembly, problem: TrajectoryProblem, constants: _Constants
+    ) -> None:
+        self.assembly, self.problem, self.constants = assembly, problem, constants
+        self.n = len(constants.s_acc)
+        k = len(problem.obstacle_radii)
+        self.collides = constants.collision and k > 0
+        self.shape = (len(assembly.robot.capsules), k, problem.steps)
 
     def woken(self) -> np.ndarray:
         """No pair woken yet: (C, k, T) flags."""
         return np.zeros(self.shape, dtype=bool)
 
-    def evaluate(self, x: np.ndarray, known: KnotFrames | None = None) -> Iterate:
-        """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`)."""
-        problem, robot, T = self.problem, self.assembly.robot, x.shape[0]
-        r_acc = np.empty_like(x)
-        acceleration_residuals(x, problem.q_start, problem.v_start, problem.dt, self.s_acc, r_acc)
+    def evaluate(
+        self, x: np.ndarray, known: KnotFrames | None = None, r_acc: np.ndarray | None = None
+    ) -> Iterate:
+        """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`).
+
+        ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals.
+        """
+        problem, robot, c = self.problem, self.assembly.robot, self.constants
+        if r_acc is None:
+            r_acc = np.empty_like(x)
+            acceleration_residuals(x, problem.q_start, problem.v_start, problem.dt, c.s_acc, r_acc)
+        T = x.shape[0]
         q_prev = x[-2] if T > 1 else problem.q_start
-        data = self.assembly.data
         r_fin, J_fin = final_terms(
-            robot.model, data, robot.tcp_frame_id, problem, q_prev, x[-1], self.final_weights
+            robot.model, self.assembly.data, robot.tcp_frame_id, problem, q_prev, x[-1],
+            c.final_weights,
         )
         if T == 1:  # q_{T-1} is the fixed start
             J_fin = J_fin[:, self.n :]
         flat_acc = r_acc.reshape(-1)
-        cost = float(flat_acc @ flat_acc + r_fin @ r_fin)
-        r_col = np.zeros(self.shape)
+        cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ calls it
         if not self.collides:
-            return Iterate(x, r_acc, r_fin, J_fin, cost, None, None, r_col, *_none())
+            return Iterate(x, r_acc, r_fin, J_fin, cost, None, None, *_NONE)
         kin = self.assembly.kinematics
         poses = known.poses if known is not None else kin.forward(x)
         dist = known.distances(problem) if known is not None else None
         if dist is None:
             dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
-        cap, obs, knot, r_near = near_pairs(dist.distance, self.margin, GUARD, self.s_col, r_col)
+        r_col = np.zeros(self.shape)
+        cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, r_col)
         if knot.size:
-            cost += float(r_near @ r_near)
+            cost += float(r_near.dot(r_near))
         return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, r_col, cap, obs, knot, r_near)
 
     def linearize(self, point: Iterate) -> Linearized:
-        """``-2 J^T r`` and the pieces of ``2 J^T J`` at ``point`` (:func:`~.linearize.linearize`)."""
-        J_fin, T = point.J_fin, point.x.shape[0]
-        m = J_fin.shape[1]
-        final_gradient = 2.0 * (J_fin.T @ point.r_fin)
-        final_block = 2.0 * (J_fin.T @ J_fin)
+        """The pieces of ``2 J^T J`` and ``2 J^T r`` at ``point`` (:func:`~.linearize.linearize`)."""
+        J_fin = point.J_fin
+        J_col = _NO_ROWS
         if point.knot.size and point.poses is not None and point.dist is not None:
+            c = self.constants
             J_col = self.assembly.kinematics.distance_gradients(
                 point.poses, point.dist, self.problem.obstacles, (point.cap, point.obs, point.knot)
             )
-            J_col *= -self.s_col / self.margin
-        else:
-            J_col = np.zeros((0, self.n))
-        rhs = np.empty(T * self.n)
-        gradient_rhs(point.r_acc, self.s_acc2, final_gradient, point.knot, point.r_near, J_col, rhs)
-        return Linearized(rhs, final_block, self.n * T - m, J_col)
+            J_col *= -c.s_col / c.margin
+        first = self.n * point.x.shape[0] - J_fin.shape[1]
+        # numpy's gemv either way; dot has less overhead, and calls it as @ does for the whole
+        # (contiguous) Jacobian only, not for the T = 1 view of its last columns
+        Jtr = J_fin.T.dot(point.r_fin) if J_fin.flags.c_contiguous else J_fin.T @ point.r_fin
+        return Linearized(J_fin.T @ J_fin, Jtr, first, J_col)
 
     def damped_step(
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
     ) -> np.ndarray:
-        """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (:func:`~.levenberg._damped_step`)."""
-        n = self.n
-        band = self.assembly.band(2 * n + 1, n * point.x.shape[0])
-        damped_band(
+        """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
+        c, size = self.constants, point.r_acc.size
+        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
+        damped_system(
             band,
-            self.band_scale,
-            self.metric,
-            model.final_block,
+            rhs,
+            c.band_scale,
+            c.metric,
+            model.final_JtJ,
+            model.final_Jtr,
             model.final_first,
+            point.r_acc,
+            c.s_acc2,
             point.cap,
             point.obs,
             point.knot,
@@ -199,14 +239,26 @@ class CompiledSolve:
             lam,
         )
         try:
-            return solve_band(band, model.rhs.copy())
+            return solve_band(band, rhs)
         except (LinAlgError, ValueError) as e:
             raise SolverError(f"Gauss-Newton Cholesky failed: {e}", self.problem) from e
 
-    def advance(self, x: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, float]:
-        """``x + step`` and the largest ``|step|`` [rad]."""
-        out = np.empty_like(x)
-        return out, take_step(x, step, out)
+    def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
+        """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
+        x, problem = point.x, self.problem
+        out, r_acc = np.empty_like(x), np.empty_like(x)
+        small = take_step(
+            x,
+            step,
+            problem.q_start,
+            problem.v_start,
+            problem.dt,
+            self.constants.s_acc,
+            tolerance,
+            out,
+            r_acc,
+        )
+        return self.evaluate(out, None, r_acc), small
 
     def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
         """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
@@ -220,8 +272,3 @@ class CompiledSolve:
             return None
         problem = self.problem
         return KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
-
-
-def _none() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """No near pairs: empty (cap, obs, knot, r_near)."""
-    return _NO_PAIRS, _NO_PAIRS, _NO_PAIRS, np.zeros(0)

@@ -3,7 +3,7 @@
 The glue around the kinematics kernels (:mod:`amex.plan.kinematics_kernels`) and the banded
 Cholesky, which numpy spent ~60 small array operations per iteration on (docs/planner.md,
 "Compiled assembly"). Bit for bit the numpy of :mod:`~amex.plan.optimizer.residuals`,
-:mod:`~amex.plan.optimizer.linearize` and :func:`~amex.plan.optimizer.levenberg._damped_step`
+:mod:`~amex.plan.optimizer.linearize` and :func:`~amex.plan.optimizer.numpy_assembly.damped_step`
 (the oracles, ``tests/plan/test_assembly.py``): elementwise arithmetic in numpy's order, and
 numpy's ``add.reduceat`` (the per-knot sums of the collision pairs) as numpy adds: the first
 term plus the pairwise sum of the rest (:func:`pairwise_sum`). Dot products and small matrix
@@ -94,7 +94,7 @@ def acceleration_residuals(
 def gradient_rhs(
     r_acc: np.ndarray,
     scale2: np.ndarray,
-    final_gradient: np.ndarray,
+    final_Jtr: np.ndarray,
     knot: np.ndarray,
     r_near: np.ndarray,
     J_col: np.ndarray,
@@ -103,12 +103,12 @@ def gradient_rhs(
     """Fill ``rhs`` (nT,) with ``-2 J^T r``, the right-hand side of the damped step.
 
     The gradient of :func:`~amex.plan.optimizer.linearize.linearize`: ``D^T r_acc`` times
-    ``scale2`` (n,) (``2 s_acc``), plus ``final_gradient`` (m,) (``2 J_fin^T r_fin``) on the
-    last m entries, plus per knot the sum of ``2 r_p J_col[p]`` over its pairs p (``knot``
+    ``scale2`` (n,) (``2 s_acc``), plus ``2 final_Jtr`` (m,) (``J_fin^T r_fin`` from numpy) on
+    the last m entries, plus per knot the sum of ``2 r_p J_col[p]`` over its pairs p (``knot``
     (P,) sorted, ``J_col`` (P, n) the collision residuals' Jacobian rows).
     """
     T, n = r_acc.shape
-    m = final_gradient.shape[0]
+    m = final_Jtr.shape[0]
     size = T * n
     for t in range(T):
         for j in range(n):
@@ -119,7 +119,7 @@ def gradient_rhs(
                 g = g + r_acc[t + 2, j]
             rhs[t * n + j] = g * scale2[j]
     for i in range(m):
-        rhs[size - m + i] += final_gradient[i]
+        rhs[size - m + i] += 2.0 * final_Jtr[i]
     P = r_near.shape[0]
     terms = np.empty(P)
     start = 0
@@ -163,11 +163,38 @@ def _add_pair_curvature(
 
 
 @numba.njit(cache=True)
+def damped_system(
+    band: np.ndarray,
+    rhs: np.ndarray,
+    scale: float,
+    metric: np.ndarray,
+    final_JtJ: np.ndarray,
+    final_Jtr: np.ndarray,
+    final_first: int,
+    r_acc: np.ndarray,
+    s_acc2: np.ndarray,
+    cap: np.ndarray,
+    obs: np.ndarray,
+    knot: np.ndarray,
+    J_col: np.ndarray,
+    r_near: np.ndarray,
+    woken: np.ndarray,
+    lam: float,
+) -> bool:
+    """The damped step's system: :func:`damped_band` into ``band``, :func:`gradient_rhs` into
+    ``rhs`` (one call of the solver's iteration); whether ``G`` was added."""
+    gradient_rhs(r_acc, s_acc2, final_Jtr, knot, r_near, J_col, rhs)
+    return damped_band(
+        band, scale, metric, final_JtJ, final_first, cap, obs, knot, J_col, r_near, woken, lam
+    )
+
+
+@numba.njit(cache=True)
 def damped_band(
     band: np.ndarray,
     scale: float,
     metric: np.ndarray,
-    final_block: np.ndarray,
+    final_JtJ: np.ndarray,
     final_first: int,
     cap: np.ndarray,
     obs: np.ndarray,
@@ -180,39 +207,41 @@ def damped_band(
     """Fill ``band`` (2n + 1, nT) with ``H + G + lambda I`` in lower band storage.
 
     ``H``: the acceleration band (:func:`~amex.plan.optimizer.band.acceleration_band`, factor
-    ``scale`` ``= 2 w / dt^3``, joint ``metric`` (n,), empty: none), plus ``final_block`` (m, m)
-    (``2 J_fin^T J_fin``) from row/column ``final_first``, plus the active collision pairs'
-    ``2 J^T J`` (``r_near > 0``); ``G``: the pairs ``(cap, obs, knot)`` that are ``woken`` and
-    inactive, added only if there is one (:func:`~amex.plan.optimizer.levenberg._damped_step`).
-    Every entry is summed in the numpy version's order. Returns whether ``G`` was added.
+    ``scale`` ``= 2 w / dt^3``, joint ``metric`` (n,), empty: none), plus ``2 final_JtJ`` (m, m)
+    (``J_fin^T J_fin`` from numpy) from row/column ``final_first``, plus the active collision
+    pairs' ``2 J^T J`` (``r_near > 0``); ``G``: the pairs ``(cap, obs, knot)`` that are
+    ``woken`` and inactive, added only if there is one (the numpy damped step,
+    :func:`~amex.plan.optimizer.numpy_assembly.damped_step`). Every entry is summed in the numpy
+    version's order. Returns whether ``G`` was added.
     """
     width, size = band.shape
     n = (width - 1) // 2
     T = size // n
+    P = r_near.shape[0]
+    touched = np.zeros(T, dtype=np.bool_)  # knots whose diagonal gets more than H: lambda last
+    for p in range(P):
+        touched[knot[p]] = True
+    for col in range(final_first, size):
+        touched[col // n] = True
     s6, s5, s4, s2 = 6.0 * scale, 5.0 * scale, -4.0 * scale, -2.0 * scale
     weighted = metric.shape[0] > 0
     for t in range(T):
         diagonal = scale if t == T - 1 else (s5 if t == T - 2 else s6)
         first_off = 0.0 if t >= T - 1 else (s2 if t == T - 2 else s4)
         second_off = scale if t < T - 2 else 0.0
+        shift = 0.0 if touched[t] else lam
         for j in range(n):
             col = t * n + j
-            for d in range(width):
+            h = metric[j] if weighted else 1.0  # (c scale) h as numpy scales by the metric; x 1 = x
+            for d in range(1, width):
                 band[d, col] = 0.0  # 0 h = 0 for the metric's h > 0
-            if weighted:  # (c scale) h, as numpy scales the band by the tiled metric
-                h = metric[j]
-                band[0, col] = diagonal * h
-                band[n, col] = first_off * h
-                band[2 * n, col] = second_off * h
-            else:
-                band[0, col] = diagonal
-                band[n, col] = first_off
-                band[2 * n, col] = second_off
-    m = final_block.shape[0]
+            band[0, col] = diagonal * h + shift
+            band[n, col] = first_off * h
+            band[2 * n, col] = second_off * h
+    m = final_JtJ.shape[0]
     for i in range(m):
         for j in range(i + 1):
-            band[i - j, final_first + j] += final_block[i, j]
-    P = r_near.shape[0]
+            band[i - j, final_first + j] += 2.0 * final_JtJ[i, j]
     mask = np.empty(P)
     guarded = False
     for p in range(P):
@@ -224,8 +253,10 @@ def damped_band(
         guarded = guarded or inactive
     if guarded:
         _add_pair_curvature(band, n, knot, J_col, mask)
-    for col in range(size):
-        band[0, col] += lam
+    for t in range(T):
+        if touched[t]:
+            for j in range(n):
+                band[0, t * n + j] += lam
     return guarded
 
 
@@ -239,7 +270,7 @@ def wake_pairs(
     woken: np.ndarray,
 ) -> bool:
     """Wake the pairs inactive at the current point that the trial (``r_trial`` (C, k, T)) made
-    active; whether any (:func:`~amex.plan.optimizer.levenberg._wake_pushed_in`)."""
+    active; whether any (:func:`~amex.plan.optimizer.numpy_assembly.wake_pushed_in`)."""
     newly = np.zeros(cap.shape[0], dtype=np.bool_)
     for p in range(cap.shape[0]):
         c, o, t = cap[p], obs[p], knot[p]
@@ -253,14 +284,26 @@ def wake_pairs(
 
 
 @numba.njit(cache=True)
-def take_step(x: np.ndarray, step: np.ndarray, out: np.ndarray) -> float:
-    """``out = x + step`` (both (T, n); ``step`` flat or not) and ``max |step|`` (NaN if any)."""
-    flat_x, flat_step, flat_out = x.reshape(-1), step.reshape(-1), out.reshape(-1)
-    largest = 0.0
-    for i in range(flat_x.shape[0]):
-        s = flat_step[i]
+def take_step(
+    x: np.ndarray,
+    step: np.ndarray,
+    q_start: np.ndarray,
+    v_start: np.ndarray,
+    dt: float,
+    scale: np.ndarray,
+    tolerance: float,
+    out: np.ndarray,
+    r_acc: np.ndarray,
+) -> bool:
+    """``out = x + step`` (``step`` (nT,)) and its acceleration residuals into ``r_acc``
+    (:func:`acceleration_residuals`); whether every ``|step|`` is below ``tolerance`` (the
+    solver's ``max |step| < tolerance``, False with a NaN)."""
+    T, n = x.shape
+    flat_x, flat_out = x.reshape(-1), out.reshape(-1)
+    large = 0
+    for i in range(T * n):
+        s = step[i]
         flat_out[i] = flat_x[i] + s
-        a = abs(s)
-        if a > largest or a != a:
-            largest = a
-    return largest
+        large += 0 if abs(s) < tolerance else 1
+    acceleration_residuals(out, q_start, v_start, dt, scale, r_acc)
+    return large == 0

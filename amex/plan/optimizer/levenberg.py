@@ -112,12 +112,10 @@ def solve_trajectory(
         if current is None:
             current = solve.linearize(point)  # type: ignore[arg-type]
         step = solve.damped_step(point, current, woken, lam)  # type: ignore[arg-type]
-        trial_x, largest = solve.advance(point.x, step)
-        trial = solve.evaluate(trial_x)
+        trial, small_step = solve.step(point, step, tolerance)  # type: ignore[arg-type]
         cost, new_cost = point.cost, trial.cost
         if not math.isfinite(new_cost):
             raise SolverError(f"non-finite trajectory cost {new_cost}", problem)
-        small_step = largest < tolerance
         if new_cost <= cost:
             converged = small_step or cost - new_cost <= tolerance * cost
             point, current = trial, None

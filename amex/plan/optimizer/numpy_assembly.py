@@ -89,10 +89,10 @@ class NumpySolve:
         """:func:`damped_step`."""
         return damped_step(model, woken, lam, self.problem)
 
-    def advance(self, x: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, float]:
-        """``x + step`` and the largest ``|step|`` [rad]."""
-        step = step.reshape(x.shape)
-        return x + step, float(np.max(np.abs(step)))
+    def step(self, point: Point, step: np.ndarray, tolerance: float) -> tuple[Point, bool]:
+        """The point at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
+        step = step.reshape(point.x.shape)
+        return self.evaluate(point.x + step), float(np.max(np.abs(step))) < tolerance
 
     def wake(self, point: Point, trial: Point, woken: np.ndarray, model: Evaluation) -> bool:
         """:func:`wake_pushed_in`."""
