@@ -24,6 +24,7 @@ from amex.plan.kinematics_kernels import near_pairs
 from amex.plan.optimizer.assembly_kernels import (
     acceleration_residuals,
     damped_system,
+    equal,
     take_step,
     wake_pairs,
 )
@@ -37,8 +38,8 @@ __all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized"]
 
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
 _NO_ROWS = np.zeros((0, 0))
-#: An iterate's collision fields without collision term: r_col, cap, obs, knot, r_near.
-_NONE = (np.zeros((0, 0, 0)), _NO_PAIRS, _NO_PAIRS, _NO_PAIRS, np.zeros(0))
+#: An iterate's collision fields without collision term: cap, obs, knot, r_near.
+_NONE = (_NO_PAIRS, _NO_PAIRS, _NO_PAIRS, np.zeros(0))
 
 
 class Iterate(NamedTuple):
@@ -52,7 +53,6 @@ class Iterate(NamedTuple):
         cost: f(x).
         poses: joint frames (None without collision term).
         dist: capsule-obstacle distances (None without collision term).
-        r_col: collision residuals, shape (C, k, T), zeros but at the near pairs.
         cap, obs, knot: the pairs within ``1 + GUARD`` margins, sorted by knot (P,).
         r_near: their residuals, shape (P,).
     """
@@ -64,7 +64,6 @@ class Iterate(NamedTuple):
     cost: float
     poses: BatchPoses | None
     dist: CapsuleDistances | None
-    r_col: np.ndarray
     cap: np.ndarray
     obs: np.ndarray
     knot: np.ndarray
@@ -114,6 +113,7 @@ class CompiledAssembly:
         self.kinematics = batch_kinematics(robot)
         self.data = robot.model.createData()
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
+        self._scratch = np.zeros((0, 0, 0))
         self._constants: tuple[object, float, _Constants] | None = None
 
     def buffers(self, width: int, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -123,6 +123,13 @@ class CompiledAssembly:
             band = self._band = np.empty((width, size), order="F")
             rhs = self._rhs = np.empty(size)
         return band[:, :size], rhs[:size]
+
+    def scratch(self, shape: tuple[int, int, int]) -> np.ndarray:
+        """A (C, k, T) array of undefined entries (written, never read)."""
+        buffer = self._scratch
+        if buffer.shape[:2] != shape[:2] or buffer.shape[2] < shape[2]:
+            buffer = self._scratch = np.empty(shape)
+        return buffer[:, :, : shape[2]]
 
     def begin(self, problem: TrajectoryProblem) -> CompiledSolve:
         """The solve of ``problem``."""
@@ -189,14 +196,22 @@ class CompiledSolve:
             return Iterate(x, r_acc, r_fin, J_fin, cost, None, None, *_NONE)
         kin = self.assembly.kinematics
         poses = known.poses if known is not None else kin.forward(x)
-        dist = known.distances(problem) if known is not None else None
+        dist = None
+        if known is not None and self._same_obstacles(known):
+            dist = known.dist
         if dist is None:
             dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
-        r_col = np.zeros(self.shape)
-        cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, r_col)
+        scratch = self.assembly.scratch(self.shape)  # near_pairs' dense residuals, not read
+        cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, scratch)
         if knot.size:
             cost += float(r_near.dot(r_near))
-        return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, r_col, cap, obs, knot, r_near)
+        return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near)
+
+    def _same_obstacles(self, known: KnotFrames) -> bool:
+        """:meth:`KnotFrames.distances`' test: computed for this problem's obstacles?"""
+        problem = self.problem
+        a, b, r, s = known.obstacles, problem.obstacles, known.radii, problem.obstacle_radii
+        return a.shape == b.shape and r.shape == s.shape and equal(a, b) and equal(r, s)
 
     def linearize(self, point: Iterate) -> Linearized:
         """The pieces of ``2 J^T J`` and ``2 J^T r`` at ``point`` (:func:`~.linearize.linearize`)."""
@@ -262,9 +277,21 @@ class CompiledSolve:
 
     def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
         """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
-        if not point.knot.size:
+        if not point.knot.size or trial.dist is None:
             return False
-        return bool(wake_pairs(point.cap, point.obs, point.knot, point.r_near, trial.r_col, woken))
+        c = self.constants
+        return bool(
+            wake_pairs(
+                point.cap,
+                point.obs,
+                point.knot,
+                point.r_near,
+                trial.dist.distance,
+                c.margin,
+                c.s_col,
+                woken,
+            )
+        )
 
     def frames(self, point: Iterate) -> KnotFrames | None:
         """The frames and distances at ``point``'s knots (None without collision term)."""

@@ -266,21 +266,41 @@ def wake_pairs(
     obs: np.ndarray,
     knot: np.ndarray,
     r_near: np.ndarray,
-    r_trial: np.ndarray,
+    trial_distance: np.ndarray,
+    margin: float,
+    scale: float,
     woken: np.ndarray,
 ) -> bool:
-    """Wake the pairs inactive at the current point that the trial (``r_trial`` (C, k, T)) made
-    active; whether any (:func:`~amex.plan.optimizer.numpy_assembly.wake_pushed_in`)."""
-    newly = np.zeros(cap.shape[0], dtype=np.bool_)
-    for p in range(cap.shape[0]):
+    """Wake the pairs inactive at the current point that the trial made active; whether any.
+
+    The trial's residual of a pair is :func:`~amex.plan.kinematics_kernels.near_pairs`'
+    ``scale max(1 - d / margin, 0)`` of its distance ``trial_distance`` (C, k, T) (zero beyond
+    the guard: not active either), so the numpy version's test of the trial's residuals
+    (:func:`~amex.plan.optimizer.numpy_assembly.wake_pushed_in`) is made on the distances.
+    """
+    P = cap.shape[0]
+    newly = np.zeros(P, dtype=np.bool_)
+    for p in range(P):
         c, o, t = cap[p], obs[p], knot[p]
-        newly[p] = r_trial[c, o, t] > 0.0 and r_near[p] == 0.0 and not woken[c, o, t]
+        depth = 1.0 - trial_distance[c, o, t] / margin
+        value = depth if depth > 0.0 or depth != depth else 0.0  # np.maximum
+        newly[p] = scale * value > 0.0 and r_near[p] == 0.0 and not woken[c, o, t]
     found = False
-    for p in range(cap.shape[0]):
+    for p in range(P):
         if newly[p]:
             woken[cap[p], obs[p], knot[p]] = True
             found = True
     return found
+
+
+@numba.njit(cache=True)
+def equal(a: np.ndarray, b: np.ndarray) -> bool:
+    """``np.array_equal`` of two arrays of one shape (``==`` entry by entry: -0.0 equals 0.0)."""
+    flat_a, flat_b = a.reshape(-1), b.reshape(-1)
+    for i in range(flat_a.shape[0]):
+        if not flat_a[i] == flat_b[i]:
+            return False
+    return True
 
 
 @numba.njit(cache=True)
