@@ -31,7 +31,6 @@ import numpy as np  # noqa: E402
 
 from amex.app.argparsing import OneLineParser  # noqa: E402
 
-
 #: One recorded call: the function, its positional and keyword arguments.
 Call = tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]
 
@@ -118,9 +117,7 @@ def _replay(calls: Sequence[Call]) -> tuple[float, float]:
     return cpu_time, (time.perf_counter_ns() - tic) * 1e-9
 
 
-def cr_floor(
-    task: int, envs: range = range(1), overrides: Sequence[str] = ()
-) -> CRFloor:
+def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -> CRFloor:
     """CR's outer-step times and their floors on environments ``envs`` of ``task`` (seed 0).
 
     Args:
@@ -144,7 +141,8 @@ def cr_floor(
     method = run.method(context.plan, run.params, run.outer_dt, context.robot)
     result = CRFloor([], [], [], [], [])
     solves: list[Call] = []
-    solvers = {name: getattr(optimizer, name) for name in ("solve_trajectory", "solve_trajectory_newton")}
+    names = ("solve_trajectory", "solve_trajectory_newton")
+    solvers = {name: getattr(optimizer, name) for name in names}
 
     def captured(name: str) -> Callable[..., Any]:
         solver = solvers[name]

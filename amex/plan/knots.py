@@ -45,9 +45,7 @@ def _blend_rows(knots: np.ndarray, offset: float, stride: float, out: np.ndarray
             out[k, j] = (1.0 - a) * knots[i, j] + a * knots[i + 1, j]
 
 
-def resample_knots_numpy(
-    knots: np.ndarray, offset: float, stride: float, count: int
-) -> np.ndarray:
+def resample_knots_numpy(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:
     """:func:`resample_knots` in numpy (the reference of the compiled blend)."""
     last = len(knots) - 1
     index = whole_knots(len(knots), offset, stride, count)

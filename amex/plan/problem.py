@@ -140,7 +140,7 @@ _ARRAYS = ("q_start", "v_start", "goal_pos", "goal_axis", "obstacles", "obstacle
 
 @numba.njit(cache=True)
 def _finite(a: np.ndarray) -> bool:
-    for value in a.ravel():
+    for value in a.ravel():  # noqa: SIM110 (a loop Numba compiles)
         if not np.isfinite(value):
             return False
     return True

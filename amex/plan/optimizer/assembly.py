@@ -185,7 +185,12 @@ class CompiledSolve:
         T = x.shape[0]
         q_prev = x[-2] if T > 1 else problem.q_start
         r_fin, J_fin = final_terms(
-            robot.model, self.assembly.data, robot.tcp_frame_id, problem, q_prev, x[-1],
+            robot.model,
+            self.assembly.data,
+            robot.tcp_frame_id,
+            problem,
+            q_prev,
+            x[-1],
             c.final_weights,
         )
         if T == 1:  # q_{T-1} is the fixed start
@@ -208,13 +213,13 @@ class CompiledSolve:
         return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near)
 
     def _same_obstacles(self, known: KnotFrames) -> bool:
-        """:meth:`KnotFrames.distances`' test: computed for this problem's obstacles?"""
+        """Whether ``known`` was computed for this problem's obstacles (as ``distances`` tests)."""
         problem = self.problem
         a, b, r, s = known.obstacles, problem.obstacles, known.radii, problem.obstacle_radii
         return a.shape == b.shape and r.shape == s.shape and equal(a, b) and equal(r, s)
 
     def linearize(self, point: Iterate) -> Linearized:
-        """The pieces of ``2 J^T J`` and ``2 J^T r`` at ``point`` (:func:`~.linearize.linearize`)."""
+        """The pieces of ``2 J^T J`` and ``2 J^T r`` at ``point`` (as ``linearize``'s)."""
         J_fin = point.J_fin
         J_col = _NO_ROWS
         if point.knot.size and point.poses is not None and point.dist is not None:
@@ -229,10 +234,10 @@ class CompiledSolve:
         Jtr = J_fin.T.dot(point.r_fin) if J_fin.flags.c_contiguous else J_fin.T @ point.r_fin
         return Linearized(J_fin.T @ J_fin, Jtr, first, J_col)
 
-    def damped_step(
+    def system(
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
-    ) -> np.ndarray:
-        """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The damped step's band ``H + G + lambda I`` and right-hand side ``-g`` (buffers)."""
         c, size = self.constants, point.r_acc.size
         band, rhs = self.assembly.buffers(2 * self.n + 1, size)
         damped_system(
@@ -253,6 +258,13 @@ class CompiledSolve:
             woken,
             lam,
         )
+        return band, rhs
+
+    def damped_step(
+        self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
+    ) -> np.ndarray:
+        """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
+        band, rhs = self.system(point, model, woken, lam)
         try:
             return solve_band(band, rhs)
         except (LinAlgError, ValueError) as e:

@@ -21,7 +21,7 @@ _BLOCK = 128
 
 @numba.njit(cache=True)
 def pairwise_sum(values: np.ndarray, start: int, count: int) -> float:
-    """numpy's pairwise sum of ``values[start : start + count]`` (``@TYPE@_pairwise_sum``).
+    """The pairwise sum of ``values[start : start + count]``, numpy's ``@TYPE@_pairwise_sum``.
 
     Below 8 terms a loop from -0.0; up to 128, eight accumulators combined as
     ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))`` then the rest in order; above, the
@@ -181,8 +181,11 @@ def damped_system(
     woken: np.ndarray,
     lam: float,
 ) -> bool:
-    """The damped step's system: :func:`damped_band` into ``band``, :func:`gradient_rhs` into
-    ``rhs`` (one call of the solver's iteration); whether ``G`` was added."""
+    """The damped step's system: the band and the right-hand side, in one call.
+
+    :func:`damped_band` into ``band``, :func:`gradient_rhs` into ``rhs``; whether ``G`` was
+    added.
+    """
     gradient_rhs(r_acc, s_acc2, final_Jtr, knot, r_near, J_col, rhs)
     return damped_band(
         band, scale, metric, final_JtJ, final_first, cap, obs, knot, J_col, r_near, woken, lam
@@ -297,8 +300,8 @@ def wake_pairs(
 def equal(a: np.ndarray, b: np.ndarray) -> bool:
     """``np.array_equal`` of two arrays of one shape (``==`` entry by entry: -0.0 equals 0.0)."""
     flat_a, flat_b = a.reshape(-1), b.reshape(-1)
-    for i in range(flat_a.shape[0]):
-        if not flat_a[i] == flat_b[i]:
+    for i in range(flat_a.shape[0]):  # noqa: SIM110 (a loop Numba compiles)
+        if flat_a[i] != flat_b[i]:
             return False
     return True
 
@@ -315,9 +318,11 @@ def take_step(
     out: np.ndarray,
     r_acc: np.ndarray,
 ) -> bool:
-    """``out = x + step`` (``step`` (nT,)) and its acceleration residuals into ``r_acc``
-    (:func:`acceleration_residuals`); whether every ``|step|`` is below ``tolerance`` (the
-    solver's ``max |step| < tolerance``, False with a NaN)."""
+    """``out = x + step`` and its acceleration residuals; whether every ``|step|`` is small.
+
+    ``step`` (nT,); ``r_acc`` as :func:`acceleration_residuals` fills it. The answer is the
+    solver's ``max |step| < tolerance`` (False with a NaN).
+    """
     T, n = x.shape
     flat_x, flat_out = x.reshape(-1), out.reshape(-1)
     large = 0

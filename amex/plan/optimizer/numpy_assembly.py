@@ -19,13 +19,11 @@ from amex.plan.optimizer.residuals import KnotFrames, Point, residuals
 from amex.plan.problem import TrajectoryProblem
 from amex.robot import RobotModel
 
-__all__ = ["NumpyAssembly", "NumpySolve", "damped_step", "wake_pushed_in"]
+__all__ = ["NumpyAssembly", "NumpySolve", "damped_band_numpy", "damped_step", "wake_pushed_in"]
 
 
-def damped_step(
-    current: Evaluation, woken: np.ndarray, lam: float, problem: TrajectoryProblem
-) -> np.ndarray:
-    """``dx`` of ``(H + G + lambda I) dx = -g``, G the curvature of the woken inactive pairs."""
+def damped_band_numpy(current: Evaluation, woken: np.ndarray, lam: float) -> np.ndarray:
+    """``H + G + lambda I`` in lower band storage, G the curvature of the woken inactive pairs."""
     band = np.array(current.equations.hessian)
     guard = current.guard
     if guard is not None:
@@ -33,6 +31,14 @@ def damped_step(
         if guarded.any():
             band_memory(band)[guard.flat] += guard.curvature(guarded)
     band[0] += lam
+    return band
+
+
+def damped_step(
+    current: Evaluation, woken: np.ndarray, lam: float, problem: TrajectoryProblem
+) -> np.ndarray:
+    """``dx`` of ``(H + G + lambda I) dx = -g`` (:func:`damped_band_numpy`)."""
+    band = damped_band_numpy(current, woken, lam)
     try:
         return solve_band(band, -current.equations.gradient)
     except (LinAlgError, ValueError) as e:
