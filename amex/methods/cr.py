@@ -27,7 +27,7 @@ from amex.core.errors import ConfigError
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.knots import resample_knots, whole_knots
+from amex.plan.knots import resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
@@ -144,6 +144,17 @@ class JointTarget(NamedTuple):
     qd_star: np.ndarray
 
 
+def _columns(index: np.ndarray) -> np.ndarray | slice:
+    """``index`` as a slice where it is a run of consecutive integers (views, not copies).
+
+    ``index`` comes from :func:`~amex.plan.knots.whole_knots`: evenly spaced, repeats only where
+    clamped at either end, so a span of ``len - 1`` without repeats at the ends is such a run.
+    """
+    first, last, count = int(index[0]), int(index[-1]), len(index)
+    ends = count < 3 or (int(index[1]) == first + 1 and int(index[-2]) == last - 1)
+    return slice(first, last + 1) if last - first == count - 1 and ends else index
+
+
 class CR(Method):
     """Continuous replanning (see the module notes).
 
@@ -172,7 +183,7 @@ class CR(Method):
         dt: float = 0.01,
         robot: RobotModel | None = None,
     ) -> None:
-        from amex.plan.optimizer import TrajectoryCosts, batch_kinematics
+        from amex.plan.optimizer import CompiledAssembly, TrajectoryCosts, batch_kinematics
 
         super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
         c, robot, metric = self.config, self.robot, plan.metric
@@ -181,6 +192,7 @@ class CR(Method):
         self.costs = TrajectoryCosts.from_weights(c, metric, collision_cost=form)
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
+        self.assembly = CompiledAssembly(robot)  # the solver's buffers, kept between steps
         self.reference_q = Q
         self.reference_dt = float(plan.dt)
         self.duration = (len(Q) - 1) * self.reference_dt
@@ -246,14 +258,17 @@ class CR(Method):
         )
         offset = (obs.t - self._knots_t0) / self._knots_dt
         stride = self.knot_dt / self._knots_dt
-        index = whole_knots(len(self._knots), offset, stride, steps + 1)
+        rows = whole_knot_rows(len(self._knots), offset, stride, steps + 1)
         frames = None
-        if index is None:
+        if rows is None:
             q_init = resample_knots(self._knots, offset, stride, steps + 1)
         else:  # a shift by whole knots: the last solution's frames at them are still right
-            q_init = self._knots[index]
-            if self._frames is not None and index[1] >= 1:
-                frames = self._frames.take(index[1:] - 1)  # frames hold the free knots 1..T
+            q_init = self._knots[rows]  # a view for a slice: solutions are new arrays
+            if self._frames is not None:  # they hold the free knots 1..T: row i is column i - 1
+                if isinstance(rows, slice):
+                    frames = self._frames.take(slice(rows.start, rows.stop - 1))
+                elif rows[1] >= 1:
+                    frames = self._frames.take(_columns(rows[1:] - 1))
         solution = solve_trajectory(
             self.robot,
             problem,
@@ -262,6 +277,7 @@ class CR(Method):
             tolerance=self.tolerance,
             damping=self.damping,
             init_frames=frames,
+            assembly=self.assembly,
         )
         self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
         self._frames = solution.frames

@@ -175,11 +175,11 @@ class BatchKinematics:
     ) -> CapsuleDistances:
         """Distances of every capsule to every sphere (``centers`` (k, 3) [m], ``radii`` (k,)).
 
-        One compiled call for two knots or more (bit for bit :meth:`capsule_distances_numpy`,
-        which one knot uses: :mod:`amex.plan.kinematics_kernels`).
+        One compiled call for two knots or more, whatever the frames' memory layout (bit for bit
+        :meth:`capsule_distances_numpy`, which one knot uses: :mod:`amex.plan.kinematics_kernels`).
         """
         T, C, k = poses.position.shape[2], len(self.cap_joint), len(radii)
-        if T < 2 or not (poses.rotation.flags.c_contiguous and poses.position.flags.c_contiguous):
+        if T < 2:
             return self.capsule_distances_numpy(poses, centers, radii)
         distance, offset = np.empty((C, k, T)), np.empty((C, k, 3, T))
         capsule_sphere_distances(

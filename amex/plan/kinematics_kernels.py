@@ -129,7 +129,7 @@ def capsule_sphere_distances(
 @numba.njit(cache=True)
 def final_terms_joint(
     J: np.ndarray,
-    z: np.ndarray,
+    rotation: np.ndarray,
     p_last: np.ndarray,
     v: np.ndarray,
     Jwv: np.ndarray,
@@ -145,10 +145,12 @@ def final_terms_joint(
 
     Fills ``Jz`` (3, n), ``jac`` (9 + n, 2n) and ``residual`` (9 + n,) but its last three
     entries, ``w[3] * (Jz @ v)``, which numpy adds (its matrix-vector product sums in an order of
-    its own). ``J`` (6, n): the TCP Jacobian; ``z``: the TCP z-axis; ``v``: the final joint
+    its own). ``J`` (6, n): the TCP Jacobian; ``rotation``: the TCP orientation, whose third
+    column is its z-axis; ``v``: the final joint
     velocity; ``Jwv``: ``J[3:] @ v`` from numpy.
     """
     n = v.shape[0]
+    z = rotation[:, 2]
     # -skew(z), as numpy negates skew(z): its zeros become -0.0, -(-x) is x
     S = np.empty((3, 3))
     S[0, 0], S[0, 1], S[0, 2] = -0.0, z[2], -z[1]

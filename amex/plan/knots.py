@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from amex.core.errors import ConfigError
@@ -12,7 +13,40 @@ def resample_knots(knots: np.ndarray, offset: float, stride: float, count: int) 
 
     Indices are clamped to ``[0, len(knots) - 1]`` (the last knot repeats past the end); indices
     within 1e-9 of an integer take that row exactly (the usual case: a shift by whole knots).
+    Blends are one compiled loop (CR's every target), bit for bit :func:`resample_knots_numpy`.
     """
+    index = whole_knots(len(knots), offset, stride, count)
+    if index is not None:  # whole knots: no blending
+        return knots[index]
+    knots = np.asarray(knots, dtype=float)
+    out = np.empty((count, knots.shape[1]))
+    _blend_rows(knots, float(offset), float(stride), out)
+    return out
+
+
+@numba.njit(cache=True)
+def _blend_rows(knots: np.ndarray, offset: float, stride: float, out: np.ndarray) -> None:
+    """:func:`resample_knots_numpy`'s blend, row ``k`` of ``out`` at index ``offset + k stride``."""
+    last = knots.shape[0] - 1
+    for k in range(out.shape[0]):
+        u = offset + stride * float(k)
+        if u == u:  # numpy's clip: NaN stays, max then min, -0.0 -> 0.0
+            u = u if u > 0.0 else 0.0
+            u = u if u < float(last) else float(last)
+        nearest = np.rint(u)
+        if abs(u - nearest) <= 1e-9:
+            u = nearest
+        if last == 0:
+            out[k] = knots[0]
+            continue
+        i = min(int(np.floor(u)), max(last - 1, 0))
+        a = u - float(i)
+        for j in range(knots.shape[1]):
+            out[k, j] = (1.0 - a) * knots[i, j] + a * knots[i + 1, j]
+
+
+def resample_knots_numpy(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:
+    """:func:`resample_knots` in numpy (the reference of the compiled blend)."""
     last = len(knots) - 1
     index = whole_knots(len(knots), offset, stride, count)
     if index is not None:  # whole knots: no blending
@@ -40,6 +74,18 @@ def whole_knots(length: int, offset: float, stride: float, count: int) -> np.nda
     np.minimum(index, length - 1, out=index)
     np.maximum(index, 0, out=index)
     return index
+
+
+def whole_knot_rows(
+    length: int, offset: float, stride: float, count: int
+) -> slice | np.ndarray | None:
+    """:func:`whole_knots`' rows, as a slice where they are consecutive and unclamped (views)."""
+    first, step = round(offset), round(stride)
+    if abs(offset - first) > 1e-9 or abs(stride - step) > 1e-9:
+        return None
+    if step == 1 and first >= 0 and first + count <= length:
+        return slice(first, first + count)
+    return whole_knots(length, offset, stride, count)
 
 
 def shift_warm_start(solution_q: np.ndarray, steps_new: int) -> np.ndarray:

@@ -11,6 +11,7 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 
 from amex.core.errors import ConfigError, SolverError
@@ -113,25 +114,44 @@ class TrajectoryProblem:
     costs: TrajectoryCosts = field(default_factory=TrajectoryCosts)
 
     def __post_init__(self) -> None:
-        names = ("q_start", "v_start", "goal_pos", "goal_axis", "obstacles", "obstacle_radii")
-        for name in names:
-            object.__setattr__(self, name, np.array(getattr(self, name), dtype=float))
-        if self.obstacles.size == 0:
-            object.__setattr__(self, "obstacles", np.zeros((0, 3)))
-        n, k = max(self.q_start.size, 1), self.obstacle_radii.size
+        values = [np.array(getattr(self, name), dtype=float) for name in _ARRAYS]
+        if values[4].size == 0:
+            values[4] = np.zeros((0, 3))
+        for name, value in zip(_ARRAYS, values, strict=True):
+            object.__setattr__(self, name, value)
+        n, k = max(values[0].size, 1), values[5].size
         shapes = ((n,), (n,), (3,), (3,), (k, 3), (k,))
-        values = [getattr(self, name) for name in names]
-        for name, shape, value in zip(names, shapes, values, strict=True):
+        for name, shape, value in zip(_ARRAYS, shapes, values, strict=True):
             if value.shape != shape:
                 raise SolverError(f"trajectory problem: {name} has shape {value.shape}", self)
-        if not np.isfinite(np.concatenate([v.ravel() for v in values])).all():  # one check: CR
-            for name, value in zip(names, values, strict=True):  # builds one problem per step
+        if not _all_finite(*values):  # one compiled check: CR builds one problem per step
+            for name, value in zip(_ARRAYS, values, strict=True):
                 if not np.isfinite(value).all():
                     raise SolverError(f"trajectory problem: non-finite {name}={value}", self)
         if int(self.steps) != self.steps or self.steps < 1:
             raise SolverError(f"trajectory problem: steps={self.steps}; valid: integer >= 1", self)
         if not (math.isfinite(self.dt) and self.dt > 0.0):
             raise SolverError(f"trajectory problem: dt={self.dt}; valid: > 0 [s]", self)
+
+
+#: The array fields of :class:`TrajectoryProblem`, in the order of their shape checks.
+_ARRAYS = ("q_start", "v_start", "goal_pos", "goal_axis", "obstacles", "obstacle_radii")
+
+
+@numba.njit(cache=True)
+def _finite(a: np.ndarray) -> bool:
+    for value in a.ravel():  # noqa: SIM110 (a loop Numba compiles)
+        if not np.isfinite(value):
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _all_finite(
+    q: np.ndarray, v: np.ndarray, g: np.ndarray, a: np.ndarray, o: np.ndarray, r: np.ndarray
+) -> bool:
+    """Whether every entry of the six arrays is finite."""
+    return _finite(q) and _finite(v) and _finite(g) and _finite(a) and _finite(o) and _finite(r)
 
 
 class TrajectorySolution(NamedTuple):

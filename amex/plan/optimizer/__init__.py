@@ -10,6 +10,7 @@ from amex.plan.batch_kinematics import (
     CapsuleDistances,
     batch_kinematics,
 )
+from amex.plan.optimizer.assembly import CompiledAssembly
 from amex.plan.optimizer.levenberg import solve_trajectory
 from amex.plan.optimizer.linearize import NormalEquations, build_normal_equations
 from amex.plan.optimizer.newton import solve_trajectory_newton
@@ -20,6 +21,7 @@ __all__ = [
     "BatchKinematics",
     "BatchPoses",
     "CapsuleDistances",
+    "CompiledAssembly",
     "KnotFrames",
     "NormalEquations",
     "TrajectoryCosts",

@@ -41,6 +41,7 @@ def final_terms(
     problem: TrajectoryProblem,
     q_prev: np.ndarray,
     q_last: np.ndarray,
+    weights: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Residuals of the four final terms, shape (m,), and their Jacobian, shape (m, 2n).
 
@@ -48,7 +49,9 @@ def final_terms(
     The axis-rate derivative uses ``d omega / d q_i = z_i x sum_{k>i} z_k v_k`` (serial chain).
     With a joint final velocity (ours) the arithmetic is one compiled call
     (:func:`~amex.plan.kinematics_kernels.final_terms_joint`), bit for bit
-    :func:`final_terms_numpy`, which the TCP velocity (the original's) uses.
+    :func:`final_terms_numpy`, which the TCP velocity (the original's) uses; its two
+    matrix-vector products are numpy's (``dot``, the BLAS call of ``@``, with less overhead).
+    ``weights``: :func:`final_weights` of the problem's costs, if already at hand.
     """
     c, dt, n = problem.costs, problem.dt, len(q_last)
     if c.final_velocity_space == "tcp":
@@ -60,13 +63,13 @@ def final_terms(
     Jz = np.empty((3, n))
     residual = np.empty(9 + n)
     jac = np.empty((9 + n, 2 * n))
-    w = final_weights(c)
+    w = final_weights(c) if weights is None else weights
     final_terms_joint(
         J,
-        np.ascontiguousarray(oMf.rotation[:, 2]),
+        oMf.rotation,
         oMf.translation,
         v,
-        J[3:] @ v,
+        J[3:].dot(v),
         problem.goal_pos,
         problem.goal_axis,
         w,
@@ -75,7 +78,7 @@ def final_terms(
         residual,
         jac,
     )
-    residual[6 + n :] = w[3] * (Jz @ v)
+    residual[6 + n :] = w[3] * Jz.dot(v)
     return residual, jac
 
 

@@ -13,12 +13,11 @@ import math
 from functools import cache
 
 import numpy as np
-from scipy.linalg import LinAlgError
 
 from amex.core.errors import ConfigError, SolverError
-from amex.plan.optimizer.band import band_memory, solve_band
-from amex.plan.optimizer.linearize import Evaluation, linearize
-from amex.plan.optimizer.residuals import KnotFrames, Point, free_knots, initial_guess, residuals
+from amex.plan.optimizer.assembly import CompiledAssembly
+from amex.plan.optimizer.numpy_assembly import NumpyAssembly
+from amex.plan.optimizer.residuals import KnotFrames, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
@@ -44,35 +43,6 @@ def _retain_freed_memory() -> bool:
     return bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
 
 
-def _damped_step(
-    current: Evaluation, woken: np.ndarray, lam: float, problem: TrajectoryProblem
-) -> np.ndarray:
-    """``dx`` of ``(H + G + lambda I) dx = -g``, G the curvature of the woken inactive pairs."""
-    band = np.array(current.equations.hessian)
-    guard = current.guard
-    if guard is not None:
-        guarded = woken[guard.pairs] & (current.residuals[2][guard.pairs] == 0.0)
-        if guarded.any():
-            band_memory(band)[guard.flat] += guard.curvature(guarded)
-    band[0] += lam
-    try:
-        return solve_band(band, -current.equations.gradient)
-    except (LinAlgError, ValueError) as e:
-        raise SolverError(f"Gauss-Newton Cholesky failed: {e}", problem) from e
-
-
-def _wake_pushed_in(current: Evaluation, trial: Point, woken: np.ndarray) -> bool:
-    """Wake the guard pairs inactive at ``current`` that ``trial`` made active; whether any."""
-    guard = current.guard
-    if guard is None:
-        return False
-    newly = trial.residuals[2][guard.pairs] > 0.0
-    newly &= current.residuals[2][guard.pairs] == 0.0
-    newly &= ~woken[guard.pairs]
-    woken[tuple(index[newly] for index in guard.pairs)] = True
-    return bool(newly.any())
-
-
 def solve_trajectory(
     robot: RobotModel,
     problem: TrajectoryProblem,
@@ -81,6 +51,7 @@ def solve_trajectory(
     tolerance: float = 1e-4,
     damping: float = 1e-3,
     init_frames: KnotFrames | None = None,
+    assembly: CompiledAssembly | NumpyAssembly | None = None,
 ) -> TrajectorySolution:
     """Minimize the trajectory cost by Levenberg-damped Gauss-Newton.
 
@@ -101,6 +72,10 @@ def solve_trajectory(
         damping: smallest Levenberg term lambda on the Hessian diagonal (the original: 1e-3).
         init_frames: the frames (and distances) at ``q_init``'s free knots, if known
             (:class:`KnotFrames`; CR passes those of its last solution, shifted).
+        assembly: the iteration's implementation and buffers (:mod:`.assembly`; CR passes
+            its own, kept between solves); default: a new :class:`CompiledAssembly`. The
+            authors' proxy collision term always runs on :class:`NumpyAssembly`, the numpy
+            oracle, which gives the same numbers.
 
     Returns:
         The best trajectory found, with the frames at its knots; the cost never increases from
@@ -117,38 +92,42 @@ def solve_trajectory(
             "max_iterations >= 0, tolerance >= 0, damping > 0",
         )
     _retain_freed_memory()
-    data = robot.model.createData()
+    if problem.costs.collision_cost == "proxy":
+        assembly = NumpyAssembly(robot)
+    elif assembly is None or assembly.robot is not robot:
+        assembly = CompiledAssembly(robot)
+    solve = assembly.begin(problem)
     x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
     if init_frames is not None and init_frames.poses.position.shape[2] != len(x):
         init_frames = None
-    point = residuals(robot, data, problem, x, init_frames)
+    point = solve.evaluate(x, init_frames)
     if not math.isfinite(point.cost):
         raise SolverError(f"non-finite trajectory cost {point.cost} at the initial guess", problem)
     lam = max(damping, _INITIAL_DAMPING)
     converged, iterations = False, 0
-    woken = np.zeros(point.residuals[2].shape, dtype=bool)  # pairs a rejected step pushed in
-    current: Evaluation | None = None  # the normal equations at point, made when needed
+    woken = solve.woken()  # pairs a rejected step pushed in
+    current = None  # the normal equations at point, made when needed
     while iterations < max_iterations and not converged:
         iterations += 1
         if current is None:
-            current = linearize(robot, problem, point)
-        step = _damped_step(current, woken, lam, problem).reshape(x.shape)
-        trial = residuals(robot, data, problem, point.x + step)
+            current = solve.linearize(point)  # type: ignore[arg-type]
+        step = solve.damped_step(point, current, woken, lam)  # type: ignore[arg-type]
+        trial, small_step = solve.step(point, step, tolerance)  # type: ignore[arg-type]
         cost, new_cost = point.cost, trial.cost
         if not math.isfinite(new_cost):
             raise SolverError(f"non-finite trajectory cost {new_cost}", problem)
-        small_step = float(np.max(np.abs(step))) < tolerance
         if new_cost <= cost:
             converged = small_step or cost - new_cost <= tolerance * cost
             point, current = trial, None
             lam = max(damping, lam / 10.0)
         else:
             converged = small_step
-            if not _wake_pushed_in(current, trial, woken):
+            if not solve.wake(point, trial, woken, current):  # type: ignore[arg-type]
                 lam *= 10.0
-    frames = None
-    if point.poses is not None:
-        frames = KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
     return TrajectorySolution(
-        np.vstack([problem.q_start, point.x]), point.cost, iterations, converged, frames
+        np.concatenate((problem.q_start[None], point.x)),
+        point.cost,
+        iterations,
+        converged,
+        solve.frames(point),  # type: ignore[arg-type]
     )

@@ -10,9 +10,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import LinAlgError, solveh_banded
+from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
+from amex.plan.optimizer.band import solve_band
 from amex.plan.optimizer.linearize import Evaluation, evaluate, linearize
 from amex.plan.optimizer.residuals import free_knots, initial_guess, residuals
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
@@ -32,7 +33,7 @@ def _capped_step(
     band = np.array(current.equations.hessian)
     band[0] += lam
     try:
-        delta = solveh_banded(band, -current.equations.gradient, lower=True, check_finite=False)
+        delta = solve_band(band, -current.equations.gradient)  # solveh_banded's dpbsv, directly
     except (LinAlgError, ValueError) as e:
         raise SolverError(f"Newton Cholesky failed: {e}", problem) from e
     delta = delta.reshape(shape)

@@ -58,8 +58,11 @@ class KnotFrames(NamedTuple):
     obstacles: np.ndarray
     radii: np.ndarray
 
-    def take(self, columns: np.ndarray) -> KnotFrames:
-        """The frames of the free knots ``columns`` (indices into these), in that order."""
+    def take(self, columns: np.ndarray | slice) -> KnotFrames:
+        """The frames of the free knots ``columns`` (indices into these), in that order.
+
+        A slice gives views (CR's shift by whole knots: nothing copied), indices copies.
+        """
         rotation = self.poses.rotation[..., columns]
         poses = BatchPoses(rotation, self.poses.position[..., columns], rotation[:, 2])
         dist = None

@@ -1,0 +1,224 @@
+"""CR's outer step against its kernel floor (issue #29): ``python -m amex.app.bench_cr``.
+
+The floor of one outer step is the time of the compiled work the step must do anyway, timed
+alone on the same inputs: the Numba kernels of :mod:`amex.plan.kinematics_kernels` (frames,
+capsule distances, near pairs, pair gradients, final terms), the sines and cosines of the
+frames, Pinocchio's three calls of the final terms and LAPACK's banded Cholesky ``dpbsv``.
+Everything else the step spends (numpy glue, allocations, Python) is the gap to close.
+
+How: each outer step (``Method.step``) is timed as the episode loop times it (thread CPU and
+wall). The trajectory solve it ran is captured (its arguments), and after the step, untimed,
+solved again with the floor's functions wrapped so that they record their arguments (copies);
+the solve is deterministic, so these are the step's own calls on the step's own inputs. The
+recorded calls are then replayed back to back, unwrapped, and timed as one block: the floor.
+Nothing here asserts a time.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import sys  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Callable, Iterator, Sequence  # noqa: E402
+from contextlib import contextmanager  # noqa: E402
+from typing import Any, NamedTuple  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from amex.app.argparsing import OneLineParser  # noqa: E402
+
+#: One recorded call: the function, its positional and keyword arguments.
+Call = tuple[Callable[..., Any], tuple[Any, ...], dict[str, Any]]
+
+
+class CRFloor(NamedTuple):
+    """Per outer step: the whole step's times and its floor's, thread CPU and wall [s].
+
+    Attributes:
+        step_cpu: thread CPU time of ``Method.step``.
+        step_wall: its wall time.
+        floor_cpu: thread CPU time of the step's kernel calls and solves, replayed alone.
+        floor_wall: their wall time.
+        iterations: solver iterations of the step (0 when it held).
+    """
+
+    step_cpu: list[float]
+    step_wall: list[float]
+    floor_cpu: list[float]
+    floor_wall: list[float]
+    iterations: list[int]
+
+
+def _floor_functions() -> list[tuple[Any, str]]:
+    """The floor's functions, as (owner, attribute) of their defining module or object."""
+    import pinocchio as pin
+    import scipy.linalg.lapack as lapack
+
+    from amex.plan import kinematics_kernels as kk
+
+    names = ("forward_frames", "capsule_sphere_distances", "near_pairs", "pair_gradients")
+    owners: list[tuple[Any, str]] = [(kk, name) for name in names]
+    owners.append((kk, "final_terms_joint"))
+    owners += [(pin, "computeJointJacobians"), (pin, "updateFramePlacement")]
+    owners += [(pin, "getFrameJacobian"), (lapack, "dpbsv"), (np, "sin"), (np, "cos")]
+    return owners
+
+
+def _snapshot(value: Any) -> Any:
+    """A copy of an array argument, which a later call could change; other values as they are."""
+    return value.copy(order="K") if isinstance(value, np.ndarray) else value
+
+
+@contextmanager
+def _recording(calls: list[Call]) -> Iterator[None]:
+    """Wrap the floor's functions wherever amex holds them; each call appends (function, args).
+
+    Only calls from Python are seen (a compiled kernel calling another is one call). Array
+    arguments are copied (outputs included: the replay writes into its copies); Pinocchio's
+    ``Data`` is not (the replay runs the calls in order, as the solve did).
+    """
+    import pinocchio as pin
+
+    originals = {id(getattr(owner, name)) for owner, name in _floor_functions()}
+    modules = [m for n, m in list(sys.modules.items()) if n.startswith("amex.") and m]
+    patched = [(np, "sin", np.sin), (np, "cos", np.cos)]  # the frames' angles
+    for module in [*modules, pin, sys.modules["scipy.linalg.lapack"]]:
+        for attr, value in list(vars(module).items()):
+            if id(value) in originals and value is not np.sin and value is not np.cos:
+                patched.append((module, attr, value))
+
+    def wrap(fn: Any) -> Callable[..., Any]:
+        def recorded(*args: Any, **kwargs: Any) -> Any:
+            calls.append((fn, tuple(_snapshot(a) for a in args), dict(kwargs)))
+            return fn(*args, **kwargs)
+
+        return recorded
+
+    try:
+        for module, attr, value in patched:
+            setattr(module, attr, wrap(value))
+        yield
+    finally:
+        for module, attr, value in patched:
+            setattr(module, attr, value)
+
+
+def _replay(calls: Sequence[Call]) -> tuple[float, float]:
+    """Thread CPU and wall time [s] of ``calls`` run back to back (on fresh copies)."""
+    fresh = [(fn, tuple(_snapshot(a) for a in args), kw) for fn, args, kw in calls]
+    tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
+    for fn, args, kw in fresh:
+        fn(*args, **kw)
+    cpu_time = (time.thread_time_ns() - cpu) * 1e-9
+    return cpu_time, (time.perf_counter_ns() - tic) * 1e-9
+
+
+def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -> CRFloor:
+    """CR's outer-step times and their floors on environments ``envs`` of ``task`` (seed 0).
+
+    Args:
+        task: 1-4.
+        envs: the environments (episodes) run.
+        overrides: further config overrides, e.g. ``("experiment=original",)`` for the authors'
+            CR (Newton).
+
+    Returns:
+        Per outer step, the step's and the floor's times (module notes).
+    """
+    import amex.plan.optimizer as optimizer
+    from amex.app.compose import load_config
+    from amex.experiment.runner import prepare, setup
+    from amex.sim.episode import run_episode
+    from amex.sim.scenario import make_scenario
+
+    config = load_config([*overrides, "method=cr", f"task={task}"])
+    run = setup(config, prepare(config))
+    context = run.context
+    method = run.method(context.plan, run.params, run.outer_dt, context.robot)
+    result = CRFloor([], [], [], [], [])
+    solves: list[Call] = []
+    names = ("solve_trajectory", "solve_trajectory_newton")
+    solvers = {name: getattr(optimizer, name) for name in names}
+
+    def captured(name: str) -> Callable[..., Any]:
+        solver = solvers[name]
+
+        def solve(*args: Any, **kwargs: Any) -> Any:
+            solves.append((solver, args, kwargs))
+            return solver(*args, **kwargs)
+
+        return solve
+
+    original = method.step
+
+    def timed(obs: Any) -> Any:
+        solves.clear()
+        tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
+        out = original(obs)
+        result.step_cpu.append((time.thread_time_ns() - cpu) * 1e-9)
+        result.step_wall.append((time.perf_counter_ns() - tic) * 1e-9)
+        calls: list[Call] = []
+        iterations = 0
+        with _recording(calls):
+            for solver, args, kwargs in solves:
+                iterations += solver(*args, **kwargs).iterations
+        floor_cpu, floor_wall = _replay(calls) if calls else (0.0, 0.0)
+        result.floor_cpu.append(floor_cpu)
+        result.floor_wall.append(floor_wall)
+        result.iterations.append(iterations)
+        return out
+
+    method.step = timed  # type: ignore[method-assign]
+    try:
+        for name in solvers:
+            setattr(optimizer, name, captured(name))
+        for env in envs:
+            scenario = make_scenario(
+                run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
+            )
+            run_episode(context.robot, method, scenario, run.gains, run.loop)
+    finally:
+        for name, solver in solvers.items():
+            setattr(optimizer, name, solver)
+    return result
+
+
+def _us(values: Sequence[float], q: float) -> float:
+    return float(np.percentile(values, q)) * 1e6
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print CR's step and floor, median and p95, per task."""
+    parser = OneLineParser(prog="bench_cr", description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", type=int, nargs="*", default=[1, 2, 3, 4], choices=range(1, 5))
+    parser.add_argument("--episodes", type=int, default=2, help="environments per task")
+    parser.add_argument("--original", action="store_true", help="the authors' CR (Newton)")
+    args = parser.parse_args(argv)
+    overrides = ("experiment=original",) if args.original else ()
+    print(
+        "task  steps  iters | step CPU med   p95 | floor CPU med   p95 | ratio med  p95"
+        " | step wall med   p95 | floor wall med"
+    )
+    for task in args.tasks:
+        r = cr_floor(task, range(args.episodes), overrides)
+        solving = [i for i, it in enumerate(r.iterations) if it > 0]
+        sc = [r.step_cpu[i] for i in solving]
+        fc = [r.floor_cpu[i] for i in solving]
+        ratios = [s / f for s, f in zip(sc, fc, strict=True)]
+        sw = [r.step_wall[i] for i in solving]
+        fw = [r.floor_wall[i] for i in solving]
+        print(
+            f"{task:4d} {len(solving):6d} {np.mean([r.iterations[i] for i in solving]):6.2f} |"
+            f" {_us(sc, 50):9.1f} {_us(sc, 95):7.1f} | {_us(fc, 50):9.1f} {_us(fc, 95):7.1f} |"
+            f" {_us(sc, 50) / _us(fc, 50):6.2f} {_us(sc, 95) / _us(fc, 95):5.2f} |"
+            f" {_us(sw, 50):9.1f} {_us(sw, 95):7.1f} | {_us(fw, 50):9.1f}"
+            f"   (per-step ratio median {np.median(ratios):.2f})"
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,313 @@
+"""One Gauss-Newton iteration's residuals, normal equations and damped band, compiled.
+
+:class:`CompiledAssembly` is what :func:`~amex.plan.optimizer.levenberg.solve_trajectory` runs
+on (CR's every outer step): the kinematics kernels, Pinocchio's final-term kinematics and
+LAPACK's banded Cholesky, glued by a few compiled loops (:mod:`.assembly_kernels`) instead of
+~60 numpy operations per iteration, with its band buffer and Pinocchio data kept from one solve
+to the next. The numbers are those of the numpy functions it replaces (the oracle,
+:class:`NumpyAssembly`: :func:`~.residuals.residuals`, :func:`~.linearize.linearize`, the damped
+step) bit for bit; ``tests/plan/test_assembly.py`` compares them. The authors' proxy collision
+term (``collision_cost=proxy``) runs on the oracle.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from scipy.linalg import LinAlgError
+
+from amex.core.errors import SolverError
+from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
+from amex.plan.kinematics_kernels import near_pairs
+from amex.plan.optimizer.assembly_kernels import (
+    acceleration_residuals,
+    damped_system,
+    equal,
+    take_step,
+    wake_pairs,
+)
+from amex.plan.optimizer.band import solve_band
+from amex.plan.optimizer.final_terms import final_terms, final_weights
+from amex.plan.optimizer.residuals import GUARD, KnotFrames, acceleration_scale
+from amex.plan.problem import TrajectoryProblem
+from amex.robot import RobotModel
+
+__all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized"]
+
+_NO_PAIRS = np.zeros(0, dtype=np.int64)
+_NO_ROWS = np.zeros((0, 0))
+#: An iterate's collision fields without collision term: cap, obs, knot, r_near.
+_NONE = (_NO_PAIRS, _NO_PAIRS, _NO_PAIRS, np.zeros(0))
+
+
+class Iterate(NamedTuple):
+    """The residuals and cost at the free knots ``x`` (T, n) [rad] (as :class:`~.residuals.Point`).
+
+    Attributes:
+        x: free knots, shape (T, n) [rad].
+        r_acc: acceleration residuals, shape (T, n).
+        r_fin: final residuals, shape (m,).
+        J_fin: their Jacobian, columns (q_{T-1}, q_T) or q_T alone.
+        cost: f(x).
+        poses: joint frames (None without collision term).
+        dist: capsule-obstacle distances (None without collision term).
+        cap, obs, knot: the pairs within ``1 + GUARD`` margins, sorted by knot (P,).
+        r_near: their residuals, shape (P,).
+    """
+
+    x: np.ndarray
+    r_acc: np.ndarray
+    r_fin: np.ndarray
+    J_fin: np.ndarray
+    cost: float
+    poses: BatchPoses | None
+    dist: CapsuleDistances | None
+    cap: np.ndarray
+    obs: np.ndarray
+    knot: np.ndarray
+    r_near: np.ndarray
+
+
+class Linearized(NamedTuple):
+    """What the damped steps at an iterate need beyond its residuals (the products numpy makes).
+
+    Attributes:
+        final_JtJ: ``J_fin^T J_fin``, shape (m, m), from row/column ``final_first``.
+        final_Jtr: ``J_fin^T r_fin``, shape (m,).
+        final_first: the first row of the final block.
+        J_col: the near pairs' collision Jacobian rows, shape (P, n).
+    """
+
+    final_JtJ: np.ndarray
+    final_Jtr: np.ndarray
+    final_first: int
+    J_col: np.ndarray
+
+
+class _Constants(NamedTuple):
+    """What a solve's costs and knot spacing fix (worked out once per costs object and dt)."""
+
+    s_acc: np.ndarray  # acceleration residual factor per joint (n,)
+    s_acc2: np.ndarray  # 2 s_acc (n,)
+    band_scale: float  # 2 w_acc / dt^3
+    metric: np.ndarray  # diag(H) (n,), or empty
+    final_weights: np.ndarray  # square roots of the four final weights
+    margin: float  # collision margin [m]
+    s_col: float  # sqrt(w_col)
+    collision: bool  # a collision term at all (w_col > 0 and capsules)
+
+
+class CompiledAssembly:
+    """The compiled iteration of one robot, and the buffers its solves reuse.
+
+    Args:
+        robot: the arm.
+
+    One per caller that solves repeatedly (CR holds one); not for concurrent solves.
+    """
+
+    def __init__(self, robot: RobotModel) -> None:
+        self.robot = robot
+        self.kinematics = batch_kinematics(robot)
+        self.data = robot.model.createData()
+        self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
+        self._scratch = np.zeros((0, 0, 0))
+        self._constants: tuple[object, float, _Constants] | None = None
+
+    def buffers(self, width: int, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """A Fortran-ordered (width, size) band and a (size,) vector, overwritten by each use."""
+        band, rhs = self._band, self._rhs
+        if band.shape[0] != width or band.shape[1] < size:
+            band = self._band = np.empty((width, size), order="F")
+            rhs = self._rhs = np.empty(size)
+        return band[:, :size], rhs[:size]
+
+    def scratch(self, shape: tuple[int, int, int]) -> np.ndarray:
+        """A (C, k, T) array of undefined entries (written, never read)."""
+        buffer = self._scratch
+        if buffer.shape[:2] != shape[:2] or buffer.shape[2] < shape[2]:
+            buffer = self._scratch = np.empty(shape)
+        return buffer[:, :, : shape[2]]
+
+    def begin(self, problem: TrajectoryProblem) -> CompiledSolve:
+        """The solve of ``problem``."""
+        costs, dt = problem.costs, float(problem.dt)
+        known = self._constants
+        if known is None or known[0] is not costs or known[1] != dt:
+            known = self._constants = (costs, dt, self._work_out(problem))
+        return CompiledSolve(self, problem, known[2])
+
+    def _work_out(self, problem: TrajectoryProblem) -> _Constants:
+        c, dt, n = problem.costs, float(problem.dt), self.robot.model.nv
+        s_acc = acceleration_scale(c, dt)
+        w = c.weights
+        return _Constants(
+            np.full(n, s_acc) if isinstance(s_acc, float) else s_acc,
+            np.full(n, 2.0 * s_acc) if isinstance(s_acc, float) else 2.0 * s_acc,
+            2.0 * float(w.acceleration) / dt**3,
+            np.asarray(c.metric, dtype=float),
+            final_weights(c),
+            float(w.collision_margin),
+            math.sqrt(w.collision),
+            bool(self.robot.capsules) and w.collision > 0.0,
+        )
+
+
+class CompiledSolve:
+    """The compiled iteration of one problem (:class:`CompiledAssembly`; module notes)."""
+
+    def __init__(
+        self, assembly: CompiledAssembly, problem: TrajectoryProblem, constants: _Constants
+    ) -> None:
+        self.assembly, self.problem, self.constants = assembly, problem, constants
+        self.n = len(constants.s_acc)
+        k = len(problem.obstacle_radii)
+        self.collides = constants.collision and k > 0
+        self.shape = (len(assembly.robot.capsules), k, problem.steps)
+
+    def woken(self) -> np.ndarray:
+        """No pair woken yet: (C, k, T) flags."""
+        return np.zeros(self.shape, dtype=bool)
+
+    def evaluate(
+        self, x: np.ndarray, known: KnotFrames | None = None, r_acc: np.ndarray | None = None
+    ) -> Iterate:
+        """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`).
+
+        ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals.
+        """
+        problem, robot, c = self.problem, self.assembly.robot, self.constants
+        if r_acc is None:
+            r_acc = np.empty_like(x)
+            acceleration_residuals(x, problem.q_start, problem.v_start, problem.dt, c.s_acc, r_acc)
+        T = x.shape[0]
+        q_prev = x[-2] if T > 1 else problem.q_start
+        r_fin, J_fin = final_terms(
+            robot.model,
+            self.assembly.data,
+            robot.tcp_frame_id,
+            problem,
+            q_prev,
+            x[-1],
+            c.final_weights,
+        )
+        if T == 1:  # q_{T-1} is the fixed start
+            J_fin = J_fin[:, self.n :]
+        flat_acc = r_acc.reshape(-1)
+        cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ calls it
+        if not self.collides:
+            return Iterate(x, r_acc, r_fin, J_fin, cost, None, None, *_NONE)
+        kin = self.assembly.kinematics
+        poses = known.poses if known is not None else kin.forward(x)
+        dist = None
+        if known is not None and self._same_obstacles(known):
+            dist = known.dist
+        if dist is None:
+            dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
+        scratch = self.assembly.scratch(self.shape)  # near_pairs' dense residuals, not read
+        cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, scratch)
+        if knot.size:
+            cost += float(r_near.dot(r_near))
+        return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near)
+
+    def _same_obstacles(self, known: KnotFrames) -> bool:
+        """Whether ``known`` was computed for this problem's obstacles (as ``distances`` tests)."""
+        problem = self.problem
+        a, b, r, s = known.obstacles, problem.obstacles, known.radii, problem.obstacle_radii
+        return a.shape == b.shape and r.shape == s.shape and equal(a, b) and equal(r, s)
+
+    def linearize(self, point: Iterate) -> Linearized:
+        """The pieces of ``2 J^T J`` and ``2 J^T r`` at ``point`` (as ``linearize``'s)."""
+        J_fin = point.J_fin
+        J_col = _NO_ROWS
+        if point.knot.size and point.poses is not None and point.dist is not None:
+            c = self.constants
+            J_col = self.assembly.kinematics.distance_gradients(
+                point.poses, point.dist, self.problem.obstacles, (point.cap, point.obs, point.knot)
+            )
+            J_col *= -c.s_col / c.margin
+        first = self.n * point.x.shape[0] - J_fin.shape[1]
+        # numpy's gemv either way; dot has less overhead, and calls it as @ does for the whole
+        # (contiguous) Jacobian only, not for the T = 1 view of its last columns
+        Jtr = J_fin.T.dot(point.r_fin) if J_fin.flags.c_contiguous else J_fin.T @ point.r_fin
+        return Linearized(J_fin.T @ J_fin, Jtr, first, J_col)
+
+    def system(
+        self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The damped step's band ``H + G + lambda I`` and right-hand side ``-g`` (buffers)."""
+        c, size = self.constants, point.r_acc.size
+        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
+        damped_system(
+            band,
+            rhs,
+            c.band_scale,
+            c.metric,
+            model.final_JtJ,
+            model.final_Jtr,
+            model.final_first,
+            point.r_acc,
+            c.s_acc2,
+            point.cap,
+            point.obs,
+            point.knot,
+            model.J_col,
+            point.r_near,
+            woken,
+            lam,
+        )
+        return band, rhs
+
+    def damped_step(
+        self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
+    ) -> np.ndarray:
+        """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
+        band, rhs = self.system(point, model, woken, lam)
+        try:
+            return solve_band(band, rhs)
+        except (LinAlgError, ValueError) as e:
+            raise SolverError(f"Gauss-Newton Cholesky failed: {e}", self.problem) from e
+
+    def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
+        """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
+        x, problem = point.x, self.problem
+        out, r_acc = np.empty_like(x), np.empty_like(x)
+        small = take_step(
+            x,
+            step,
+            problem.q_start,
+            problem.v_start,
+            problem.dt,
+            self.constants.s_acc,
+            tolerance,
+            out,
+            r_acc,
+        )
+        return self.evaluate(out, None, r_acc), small
+
+    def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
+        """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
+        if not point.knot.size or trial.dist is None:
+            return False
+        c = self.constants
+        return bool(
+            wake_pairs(
+                point.cap,
+                point.obs,
+                point.knot,
+                point.r_near,
+                trial.dist.distance,
+                c.margin,
+                c.s_col,
+                woken,
+            )
+        )
+
+    def frames(self, point: Iterate) -> KnotFrames | None:
+        """The frames and distances at ``point``'s knots (None without collision term)."""
+        if point.poses is None:
+            return None
+        problem = self.problem
+        return KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
