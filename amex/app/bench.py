@@ -1,18 +1,21 @@
-"""``make bench``: medians of the costs that matter, printed as a table.
+"""``make bench``: the costs that matter, each beside its floor, so that a regression is a ratio.
 
-* inner step: one 1 kHz step (robot state, OSC solve, inverse dynamics, mj_step), median over a
-  Task-0 episode's steps, measured inside a real episode loop;
-* Task-0 episode: wall time of a whole episode with ``track`` (and its real-time factor), on the
-  Panda, then per robot of ``conf/robot/`` with ``sim=dynamic`` and ``sim=kinematic``;
-* reference plan: cold solve, and a disk-cache hit;
-* each registered method's own outer step (``Method.step``), median, mean and p95 over the
-  steps of Task-3 episodes (``--episodes N`` environments, default 1; ``--methods`` a subset),
-  in wall time and in thread CPU time (``time.thread_time_ns``; the reactive methods' targets,
-  issue #26: rmpflow, cbf_ik, amex_cbf <= 0.5 ms, dmp_avoid <= 0.1 ms, beside AMEX's);
-* the replanners' outer step (CR and MPPI) on ``--tasks`` (default 1-4): median, p95 and max of
-  its thread CPU time (what ``deadline_misses`` counts) and the fraction over the 10 ms period.
+* inner 1 kHz step (robot state, OSC, collision task, inverse dynamics, ``mj_step``) inside real
+  episodes, Task 0 and Task 3 (AMEX, DMP, CR), in and out of the collision margin: median and
+  p95 of its thread CPU time beside its library floor, the same Pinocchio, coal and MuJoCo
+  calls replayed alone on the same state (:mod:`amex.app.bench_inner`);
+* start-up of ``amex-run``, whole-process CPU, warm and with a cold Numba cache, beside the
+  interpreter importing the libraries a run calls (:mod:`amex.app.bench_startup`);
+* ``log=full``: thread CPU of logged episodes over the same episodes unlogged;
+* Task-0 episodes per robot (``sim=dynamic`` and ``kinematic``), the reference plan cold and from
+  the disk cache;
+* each registered method's outer step (``Method.step``) on ``--tasks`` (default 1-4), over
+  ``--episodes`` environments: median and p95 of its thread CPU time (``time.thread_time_ns``),
+  its wall median, and beside it CR's kernel floor (:mod:`amex.app.bench_cr`) or the method's
+  target (AMEX <= 5 us, issue #29; the reactive methods', issue #26); the replanners' (CR,
+  MPPI) max and fraction over the 10 ms period.
 
-Timings use ``time.perf_counter_ns``; nothing here asserts a time (tests never time things).
+Nothing here asserts a time (tests never time things).
 """
 
 from __future__ import annotations
@@ -22,57 +25,26 @@ import os
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
+import math  # noqa: E402
 import statistics  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 from amex.app.argparsing import OneLineParser  # noqa: E402
-from amex.control.collision import CollisionModel  # noqa: E402
-from amex.control.osc import Command, OperationalSpaceController  # noqa: E402
-from amex.control.state import RobotState  # noqa: E402
 from amex.experiment.config import RunConfig  # noqa: E402
 from amex.experiment.runner import prepare, run_one  # noqa: E402
 from amex.methods import METHODS  # noqa: E402
 from amex.plan.cache import reference_plan, solve_reference  # noqa: E402
 from amex.sim.scenario import make_scenario  # noqa: E402
-from amex.sim.simulation import Simulation  # noqa: E402
 
 
 def _config(method: str, task: int = 0) -> RunConfig:
     config = RunConfig(task=task)
     config.method = METHODS[method].config_class()
     return config
-
-
-def bench_inner_step(config: RunConfig, steps: int = 4000) -> list[float]:
-    """Per-step wall times [s] of the inner loop following the reference plan in Task 0."""
-    context = prepare(config)
-    robot, plan = context.robot, context.plan
-    scenario = make_scenario(config.scene(), 0, 0, 0, plan.y[0, :3], plan.duration)
-    sim = Simulation(robot, scenario, config.inner_hz)
-    collision = CollisionModel(robot, scenario.obstacle_radii)
-    osc = OperationalSpaceController(robot, config.gains(), collision)
-    method = METHODS["track"](plan, METHODS["track"].config_class(), 0.01, robot)
-    pdata = robot.model.createData()
-    from amex.methods.base import Observation
-
-    times = []
-    command = Command()
-    for k in range(steps):
-        tic = time.perf_counter_ns()
-        state = RobotState(robot, pdata, sim.data.qpos.copy(), sim.data.qvel.copy())
-        if k % 10 == 0:
-            obs = Observation(k * 1e-3, state.q, state.v, state.y, state.yd, plan.goal)
-            command = method.step(obs)
-        tau = osc.torque(state, command)
-        sim.data.qfrc_applied[:] = tau
-        mujoco.mj_step(sim.model, sim.data)
-        times.append((time.perf_counter_ns() - tic) * 1e-9)
-    return times
 
 
 def bench_episode(config: RunConfig, repeats: int = 5) -> list[float]:
@@ -151,20 +123,26 @@ def bench_method_steps(
     return walls, cpus
 
 
-#: The replanners whose outer step is timed on every task (issue #27: MPPI beside CR).
+#: The replanners whose outer step is also reported with its max and deadline misses.
 REPLANNERS = ("cr", "mppi")
+#: Targets of the outer steps [s] (issue #29: AMEX; issue #26: the reactive methods).
+STEP_TARGETS = {"amex": 5e-6, "rmpflow": 5e-4, "cbf_ik": 5e-4, "amex_cbf": 5e-4, "dmp_avoid": 1e-4}
 
 
 def _us(x: float | np.floating) -> str:
     return f"{float(x) * 1e6:9.1f} us"
 
 
+def _ratio(value: float, floor: float) -> str:
+    return f"{value / floor:5.2f}x" if floor > 0 else "    -"
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Print the benchmark table."""
+    """Print the benchmark report: each figure beside its floor, so a regression is a ratio."""
     parser = OneLineParser(prog="amex-bench", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repetitions")
     parser.add_argument(
-        "--episodes", type=int, default=1, help="Task-3 environments per method's step timing"
+        "--episodes", type=int, default=1, help="environments per (method, task) step timing"
     )
     parser.add_argument(
         "--methods", nargs="*", choices=sorted(METHODS), help="methods to time (default: all)"
@@ -176,39 +154,96 @@ def main(argv: list[str] | None = None) -> None:
         nargs="*",
         choices=range(5),
         default=[1, 2, 3, 4],
-        help=f"tasks on which the replanners ({', '.join(REPLANNERS)}) are timed on CPU time",
+        help="tasks on which every method's outer step is timed",
     )
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes {args.episodes}: valid: an integer >= 1")
+    envs = range(args.episodes)
     if not args.steps_only:
+        _print_inner(args.quick)
+        _print_startup(args.quick)
+        _print_log_cost(args.quick)
         _print_platform(args.quick)
+    print("outer step of each method (thread CPU time per step; `floor`: its compiled kernels")
+    print("and LAPACK solves timed alone on the same inputs, where a method has one)")
     for name in args.methods or sorted(METHODS):
-        steps, cpu = bench_method_steps(name, envs=range(args.episodes))
-        p95 = float(np.percentile(steps, 95))
-        print(
-            f"method {name:<9} outer step on Task 3 ({args.episodes} env), median of "
-            f"{len(steps)}: {_us(np.median(steps))}  (mean {_us(np.mean(steps))}, p95 {_us(p95)});"
-            f" thread CPU median {_us(np.median(cpu))}, p95 {_us(np.percentile(cpu, 95))}"
-        )
-    replanners = [m for m in REPLANNERS if m in (args.methods or REPLANNERS)]
-    for name in replanners:
         for task in args.tasks:
-            walls, cpus = bench_method_steps(name, task, envs=range(args.episodes))
-            times, period = np.asarray(cpus), 0.01
-            print(
-                f"method {name:<9} Task {task} ({args.episodes} env, {len(times)} steps), thread "
-                f"CPU: median {_us(np.median(times))}, p95 {_us(np.percentile(times, 95))}, max "
-                f"{_us(times.max())}; wall median {_us(np.median(walls))}; over 10 ms:"
-                f" {np.mean(times > period):.4f}"
-            )
+            _print_method(name, task, envs)
+
+
+def _print_method(name: str, task: int, envs: range) -> None:
+    """One method's outer step on one task: median, p95 (thread CPU), floor or target."""
+    floor = math.nan
+    if name == "cr":
+        from amex.app.bench_cr import cr_floor
+
+        steps = cr_floor(task, envs)
+        cpus, walls = np.asarray(steps.step_cpu), np.asarray(steps.step_wall)
+        floor = float(np.median(steps.floor_cpu))
+    else:
+        walls_list, cpus_list = bench_method_steps(name, task, envs)
+        cpus, walls = np.asarray(cpus_list), np.asarray(walls_list)
+    median, p95 = float(np.median(cpus)), float(np.percentile(cpus, 95))
+    beside = ""
+    if math.isfinite(floor):
+        beside = f"  floor {_us(floor)}  ratio {_ratio(median, floor)}"
+    elif name in STEP_TARGETS:
+        beside = f"  target {_us(STEP_TARGETS[name])}"
+    extra = ""
+    if name in REPLANNERS:
+        extra = f"  max {_us(cpus.max())}  over 10 ms {np.mean(cpus > 0.01):.4f}"
+    print(
+        f"  {name:<10} Task {task} ({len(envs)} env, {len(cpus):5d} steps): median {_us(median)}"
+        f"  p95 {_us(p95)}  wall median {_us(np.median(walls))}{beside}{extra}"
+    )
+
+
+def _print_inner(quick: bool) -> None:
+    """The 1 kHz inner step inside real episodes beside its library floor (bench_inner)."""
+    from amex.app.bench_inner import measure, table_rows
+
+    envs = range(1 if quick else 2)
+    print("inner 1 kHz step inside real episodes (thread CPU; floor: its Pinocchio, coal and")
+    print("MuJoCo calls replayed alone on the same state)")
+    for task, method in ((0, "track"), (3, "amex"), (3, "dmp"), (3, "cr")):
+        steps = measure(task, method, envs)
+        print(f" Task {task}, {method} ({len(envs)} env, {len(steps.outer)} steps)")
+        print("\n".join(table_rows(steps)))
+
+
+def _print_startup(quick: bool) -> None:
+    """Start-up CPU of amex-run, warm and cold, beside its floor (bench_startup)."""
+    from amex.app.bench_startup import STEPS, startup_times
+
+    times = startup_times(2 if quick else 5)
+    floor = statistics.median(times.floor)
+    print(f"start-up of amex-run (whole process, user + system CPU, one {STEPS}-step episode;")
+    print(" floor: the interpreter importing the libraries a run calls)")
+    for label, values in (("warm caches", times.warm), ("cold Numba cache", times.cold)):
+        median = statistics.median(values)
+        print(
+            f"  {label:<17} median of {len(values)}: {median:6.3f} s  (min {min(values):.3f}, "
+            f"max {max(values):.3f})  floor {floor:6.3f} s  ratio {_ratio(median, floor)}"
+        )
+
+
+def _print_log_cost(quick: bool) -> None:
+    """What ``log=full`` adds to an episode's thread CPU (bench_log), per task with AMEX."""
+    try:
+        from amex.app.bench_log import log_overhead
+    except ImportError:  # not in this version
+        return
+    print("log=full: thread CPU of logged episodes over the same episodes unlogged")
+    for task in (1, 3):
+        plain, logged = log_overhead(task, "amex", range(2 if quick else 4))
+        ratio = float(np.sum(logged) / np.sum(plain))
+        print(f"  Task {task} amex: +{(ratio - 1) * 100:5.1f} % (target <= 15 %)")
 
 
 def _print_platform(quick: bool) -> None:
-    """The inner step, the Task-0 episode and the reference plan."""
+    """The Task-0 episodes (per robot) and the reference plan."""
     config = _config("track")
-    inner = bench_inner_step(config, 2000 if quick else 6000)
-    print(f"inner step (state + OSC + mj_step), median of {len(inner)}: {_us(np.median(inner))}")
     episode = bench_episode(config, 2 if quick else 5)
     final_time, walls = episode[-1], episode[:-1]
     wall = statistics.median(walls)

@@ -6,10 +6,10 @@ from amex.app.bench import main
 
 
 def test_bench_times_a_method_over_task3_episodes(capsys):
-    main(["--steps-only", "--methods", "track", "--episodes", "2"])
+    main(["--steps-only", "--methods", "track", "--episodes", "2", "--tasks", "3"])
     out = capsys.readouterr().out
-    assert "method track     outer step on Task 3 (2 env), median of" in out
-    assert "p95" in out and "thread CPU median" in out
+    line = next(x for x in out.splitlines() if x.strip().startswith("track"))
+    assert "Task 3 (2 env," in line and "median" in line and "p95" in line and "wall median" in line
 
 
 def test_bench_refuses_zero_episodes(capsys):
@@ -23,7 +23,13 @@ def test_bench_refuses_zero_episodes(capsys):
 def test_bench_times_the_replanners_on_cpu_time_per_task(capsys):
     main(["--steps-only", "--methods", "mppi", "--episodes", "1", "--tasks", "1"])
     out = capsys.readouterr().out
-    assert "method mppi      outer step on Task 3 (1 env)" in out
-    line = next(x for x in out.splitlines() if "Task 1 (1 env" in x)
-    assert line.startswith("method mppi") and "thread CPU: median" in line and "max" in line
-    assert "over 10 ms:" in line
+    line = next(x for x in out.splitlines() if x.strip().startswith("mppi"))
+    assert "Task 1 (1 env" in line and "median" in line and "max" in line
+    assert "over 10 ms" in line
+
+
+def test_bench_puts_amex_beside_its_target(capsys):
+    main(["--steps-only", "--methods", "amex", "--episodes", "1", "--tasks", "2"])
+    out = capsys.readouterr().out
+    line = next(x for x in out.splitlines() if x.strip().startswith("amex"))
+    assert "target" in line and "5.0 us" in line
