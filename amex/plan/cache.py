@@ -173,10 +173,15 @@ def solve_reference(
 
 
 class CacheRead(NamedTuple):
-    """A cache file's plan, or None and why it is not used ("" for a missing file)."""
+    """A cache file's plan, or None and why it is not used ("" for a missing file).
+
+    ``checked_now``: the plan passed the end check in this read (the file had no digest of an
+    earlier one, :func:`_checked_digest`).
+    """
 
     plan: ReferencePlan | None
     problem: str
+    checked_now: bool = False
 
 
 def end_step(
@@ -245,6 +250,7 @@ def read_cached(
             y = np.array(f["y"], dtype=float)
             dt = float(f["dt"])
             stored_key, stored_spec = str(f["key"]), str(f["spec"])
+            checked = str(f["checked"]) if "checked" in f.files else ""
     except Exception as e:  # missing, truncated, garbled, not an npz: numpy raises many types
         reason = str(e).splitlines()[0][:120] if str(e) else ""
         return CacheRead(None, f"unreadable: {type(e).__name__} {reason}".rstrip())
@@ -265,8 +271,25 @@ def read_cached(
     if not np.allclose(y, image, rtol=0.0, atol=1e-9):
         return CacheRead(None, "its task-space image is not the kinematics of its joints")
     plan = ReferencePlan(q=q, y=y, dt=config.dt, metric=joint_metric(config.metric, robot.nv))
+    if checked and checked == _checked_digest(key, q, y, dt):
+        return CacheRead(plan, "")  # written by reference_plan after its own end check
     problem = _end_problem(robot, config, plan, goal_pos, goal_axis)
-    return CacheRead(None, problem) if problem else CacheRead(plan, "")
+    return CacheRead(None, problem) if problem else CacheRead(plan, "", checked_now=True)
+
+
+def _checked_digest(key: str, q: np.ndarray, y: np.ndarray, dt: float) -> str:
+    """What a file that passed the end check carries (``checked``): a digest of its contents.
+
+    :func:`reference_plan` stores it beside a plan it solved and checked, so a reader skips
+    the end check (a Gauss-Newton linearization of the whole plan, ~0.1-0.2 s of every run's
+    start-up) for exactly those contents; a file without it, or whose plan, key or sample
+    period changed since, is checked again.
+    """
+    digest = hashlib.sha256(key.encode())
+    for part in (np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(y, dtype=float)):
+        digest.update(part.tobytes())
+    digest.update(np.float64(dt).tobytes())
+    return digest.hexdigest()
 
 
 def load_cached(
@@ -276,8 +299,11 @@ def load_cached(
     return read_cached(path, robot, config, goal_pos, goal_axis).plan
 
 
-def store(path: Path, plan: ReferencePlan, spec: dict[str, Any]) -> bool:
+def store(path: Path, plan: ReferencePlan, spec: dict[str, Any], checked: bool = False) -> bool:
     """Write ``plan`` with its ``spec`` (:func:`plan_spec`) to ``path`` atomically.
+
+    ``checked``: the plan passed the end check for ``spec`` (:func:`reference_plan`); the file
+    then carries the digest that lets readers skip it (:func:`_checked_digest`).
 
     Returns:
         False (and one warning) if the cache is unwritable.
@@ -285,7 +311,10 @@ def store(path: Path, plan: ReferencePlan, spec: dict[str, Any]) -> bool:
     text = _spec_text(spec)
     key = hashlib.sha256(text.encode()).hexdigest()[:20]
     buffer = io.BytesIO()
-    np.savez(buffer, q=plan.q, y=plan.y, dt=plan.dt, key=key, spec=text)
+    fields: dict[str, Any] = {"q": plan.q, "y": plan.y, "dt": plan.dt, "key": key, "spec": text}
+    if checked:
+        fields["checked"] = _checked_digest(key, plan.q, plan.y, float(plan.dt))
+    np.savez(buffer, **fields)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         replace_durably(path, buffer.getvalue())
@@ -319,6 +348,8 @@ def reference_plan(
     path = directory / f"plan_{plan_key(robot, config, goal_pos, goal_axis)}.npz"
     cached = read_cached(path, robot, config, goal_pos, goal_axis)
     if cached.plan is not None:
+        if cached.checked_now:  # a file of an earlier version: its check is not repeated
+            store(path, cached.plan, spec, checked=True)
         return cached.plan
     if cached.problem:
         log.warning("plan cache file %s not used (%s): solved again", path, cached.problem)
@@ -327,5 +358,5 @@ def reference_plan(
     if problem:
         log.warning("the solved reference plan misses its goal: %s; not cached", problem)
     else:
-        store(path, plan, spec)
+        store(path, plan, spec, checked=True)
     return plan

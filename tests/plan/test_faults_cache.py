@@ -203,3 +203,25 @@ def test_a_solved_plan_passes_its_own_end_check_even_where_it_misses_the_goal(ro
     assert position < END_TOLERANCE / 2 and axis < END_TOLERANCE / 2
     moved = end_step(robot, config, plan.q, GOAL + np.array([0.0, 0.0, 5e-4]), AXIS)[0]
     assert moved > END_TOLERANCE  # a plan of a goal 0.5 mm away is found out
+
+
+def test_a_plan_this_code_solved_and_checked_is_read_without_a_second_end_check(
+    robot, fresh, tmp_path, monkeypatch
+):
+    import amex.plan.cache as cache
+
+    reference_plan(robot, CONFIG, GOAL, AXIS, directory=tmp_path)  # solved, checked, stored
+    path = _path(robot, tmp_path)
+    checks = []
+    real = cache._end_problem
+    monkeypatch.setattr(cache, "_end_problem", lambda *a: checks.append(1) or real(*a))
+    plan = load_cached(path, robot, CONFIG, GOAL, AXIS)
+    assert plan is not None and np.array_equal(plan.q, fresh.q) and checks == []
+    # the same file with one joint angle changed: its digest no longer fits, the check runs
+    with np.load(path) as f:
+        fields = {k: f[k] for k in f.files}
+    fields["q"], fields["y"] = fields["q"].copy(), fields["y"].copy()
+    fields["q"][-1, 0] += 1e-3
+    fields["y"][-1] = robot.task_position(fields["q"][-1])  # its image still its kinematics
+    _save(path, **fields)
+    assert load_cached(path, robot, CONFIG, GOAL, AXIS) is None and checks == [1]
