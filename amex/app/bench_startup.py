@@ -62,7 +62,7 @@ def startup_times(repeats: int = 5) -> StartupTimes:
     floor: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
         env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
-        floor_cmd = [sys.executable, "-c", f"import {FLOOR_IMPORTS}"]
+        floor_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; gc.freeze()"]
         _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
         for k in range(repeats):
             warm.append(_child_cpu(_run_command(Path(tmp) / f"warm{k}"), env, tmp))
