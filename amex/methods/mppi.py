@@ -56,6 +56,15 @@ if TYPE_CHECKING:  # the rollouts need Pinocchio and Numba; imported when an MPP
 #: Second word of every sampler seed: MPPI's stream, apart from any other user of the seed.
 MPPI_STREAM = 0x6D707069  # "mppi"
 CLOCKS: dict[str, Callable[[], int]] = {"thread": time.thread_time_ns, "wall": time.perf_counter_ns}
+#: ``budget_clock=work``: the deterministic clock, a cost model of one sample's rollout per
+#: horizon knot, ``WORK_NS_KNOT + WORK_NS_PAIR * pairs`` [ns] (pairs: arm capsules x obstacles),
+#: and of a step's work after its rollouts, ``WORK_NS_TAIL`` [ns]. Calibrated on the 2-core AMD
+#: EPYC CI machine, thread CPU, chunks of 32 (Tasks 1, 3, 4; 8-32 knots; 255-500 ns per sample
+#: and knot, the model's bound above the measured); docs/methods/mppi.md.
+WORK_NS_KNOT = 250
+WORK_NS_PAIR = 20
+WORK_NS_TAIL = 200_000
+BUDGET_CLOCKS = (*CLOCKS, "work")
 COMMANDS = ("matched", "midpoint")
 
 
@@ -86,8 +95,11 @@ class MPPIConfig(MethodConfig):
         joint_limits: squared excursions beyond the joint and speed limits [1/(rad^2 s)].
         limit_margin: distance inside the joint limits where their cost starts [rad].
         budget: the step's time budget [s], at most the outer period.
-        budget_clock: ``thread`` (the thread's CPU time, as ``deadline_misses`` counts it) or
-            ``wall``.
+        budget_clock: ``thread`` (the thread's CPU time, as ``deadline_misses`` counts it),
+            ``wall``, or ``work``: a deterministic clock, the predicted time of the work done
+            (:data:`WORK_NS_KNOT`), so that where the budget binds it binds at the same sample
+            on every machine and run (bit-reproducible; the deadline then holds on machines as
+            fast as the model's).
         chunk: samples per compiled call, the budget's granularity.
         command: ``matched`` (the targets that make the inner joint PD reach the nominal's
             velocity at the end of the period) or ``midpoint`` (CR's: the nominal's state in
@@ -137,8 +149,8 @@ class MPPIConfig(MethodConfig):
         for key in ("knot_dt", "temperature", "budget", "collision_margin"):
             if not getattr(self, key) > 0.0:
                 raise invalid(key, getattr(self, key), "a finite number > 0")
-        if self.budget_clock not in CLOCKS:
-            raise invalid("budget_clock", self.budget_clock, sorted(CLOCKS))
+        if self.budget_clock not in BUDGET_CLOCKS:
+            raise invalid("budget_clock", self.budget_clock, sorted(BUDGET_CLOCKS))
         if self.command not in COMMANDS:
             raise invalid("command", self.command, list(COMMANDS))
         if not (self.inner_hz > 0.0 and self.tracking_kp + self.tracking_kd > 0.0):
@@ -283,7 +295,7 @@ class MPPI(Method):
         )  # fmt: skip
         self.B = interpolation_matrix(int(c.knots), int(c.control_every))
         self.rollouts = Rollouts(rollout_model(robot, self.kinematics, metric), weights, self.B)
-        self.clock = CLOCKS[c.budget_clock]
+        self.clock = CLOCKS.get(c.budget_clock, time.thread_time_ns)  # ``work``: for elapsed
         substeps = max(int(round(c.inner_hz * self.dt)), 1)
         kp, kd = float(c.tracking_kp), float(c.tracking_kd)
         self.pd_map = pd_period(kp, kd, 1.0 / c.inner_hz, substeps)
@@ -387,12 +399,18 @@ class MPPI(Method):
         budget = int(c.budget * 1e9)
         goal_pos, goal_axis = obs.goal[:3], obs.goal[3:6]
         evaluated, early, chunk_times = 0, False, []
+        work = c.budget_clock == "work"
+        per_sample = int(c.knots) * (WORK_NS_KNOT + WORK_NS_PAIR * self._pairs(obs))
         while evaluated < K:
             now = clock()
-            if budgeted and now - start + self._chunk_time + self._tail_time > budget:
+            size = min(int(c.chunk), K - evaluated)
+            if work:  # the deterministic clock: the model's time of the samples so far
+                over = (evaluated + size) * per_sample + WORK_NS_TAIL > budget
+            else:
+                over = now - start + self._chunk_time + self._tail_time > budget
+            if budgeted and over:
                 early = True
                 break
-            size = min(int(c.chunk), K - evaluated)
             block = eps[evaluated : evaluated + size]
             block[:, 1:] = rng.standard_normal((size, m - 1, n)) * c.noise
             if evaluated == 0:
@@ -427,6 +445,10 @@ class MPPI(Method):
         self._tail_time = int(np.median(self._tails))
         self._status = status._replace(elapsed=(end - start) * 1e-9)
         return self._status
+
+    def _pairs(self, obs: Observation) -> int:
+        """Arm capsule-obstacle pairs of the rollouts' collision cost (the work model's)."""
+        return len(self.robot.capsules) * len(obs.obstacle_radii)
 
     def target(self, q: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Joint target ``(q*, q_dot*)`` of the nominal from ``(q, qd)``, shapes (n,).

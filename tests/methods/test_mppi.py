@@ -206,6 +206,29 @@ def test_one_slow_chunk_does_not_stop_the_steps_after_it_for_good(robot, context
     assert evaluated[:3] == [0, 0, 0] and evaluated[-1] == MPPIConfig().samples
 
 
+def test_the_work_clock_stops_at_the_sample_its_model_predicts_and_repeats_bit_for_bit(
+    robot, context
+):
+    """``budget_clock=work``: where the budget binds, it binds at the same sample every time."""
+    from amex.methods.mppi import WORK_NS_KNOT, WORK_NS_PAIR, WORK_NS_TAIL
+
+    _, ctx = context
+    config = scene(MPPIConfig(budget_clock="work", samples=4096, chunk=32, budget=DT))
+    obstacles = robot.task_position(robot.q0)[None, :3] + 0.1
+    per_sample = config.knots * (WORK_NS_KNOT + WORK_NS_PAIR * len(robot.capsules))
+    chunks = (int(DT * 1e9) - WORK_NS_TAIL) // (32 * per_sample)  # whole chunks within it
+    runs = []
+    for _ in range(2):
+        method = MPPI(ctx.plan, config, DT, robot)
+        obs = observe(robot, 0.0, robot.q0, obstacles=obstacles)
+        method.reset(obs)
+        commands = [method.step(dataclasses.replace(obs, t=k * DT)) for k in range(3)]
+        assert method.status.early_stop and method.status.evaluated == 32 * chunks
+        assert method.early_stops == 3
+        runs.append(np.concatenate([np.r_[c.q, c.qd] for c in commands]))
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
 def test_a_budget_that_fits_evaluates_every_sample(robot, context):
     _, ctx = context
     method = MPPI(ctx.plan, scene(MPPIConfig(samples=40, chunk=16, budget=DT)), DT, robot)
