@@ -103,6 +103,10 @@ def amex_update(
 ) -> int:
     """One outer step of Algorithm 1 for task state y and goal g, shapes (m,); in place.
 
+    Longer than 80 lines on purpose: one compiled call per step, written statement for statement
+    as its numpy oracle so that the two stay bit-identical and can be read side by side; split,
+    each part would be another dispatch per step.
+
     Eq. 8 advances the phase s (the guarded factors delta_g, delta_y; the warm-up steps add
     Delta s_ref), Eq. 7 re-anchors the plan offset (p, q) so that tau_plan(s) = y and
     tau_plan(1) = g, Eq. 9 gives the target y* = y + step along the plan and y_dot* = step / dt;

@@ -55,6 +55,10 @@ def pair_terms(
 ) -> None:
     """Fill ``gradient`` (k, n), ``rate`` (k,) and, if ``drift``, ``accel`` (k,) in place.
 
+    Longer than 80 lines on purpose: one compiled call per step, written statement for statement
+    as its numpy oracle so that the two stay bit-identical and can be read side by side; split,
+    each part would be another dispatch per step.
+
     Per pair i: ``rows[i]`` its joint's row in the per-joint arrays ``rotation`` (u, 3, 3),
     ``origin`` (u, 3), ``jacobian`` (u, 6, n, LOCAL_WORLD_ALIGNED), ``v_local`` and ``a_local``
     (u, 6: the joint's spatial velocity and acceleration at ``q_ddot = 0`` in its own frame,

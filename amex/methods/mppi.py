@@ -28,6 +28,10 @@ Seeding: the noise of step k is drawn from ``SeedSequence([seed, MPPI_STREAM, k,
 ``h`` a 128-bit digest of the observation, which the episode's seed, task and environment
 determine: the same episode gives the same rows in any process, worker or shard, and no global
 random state is read. Design and measurements: ``docs/methods/mppi.md``.
+
+Over 400 lines on purpose: like every method, its config, status and class in one module; the
+sampler, the budget and the command shaping share the method's state (the rollouts themselves are
+amex.plan.rollouts).
 """
 
 from __future__ import annotations

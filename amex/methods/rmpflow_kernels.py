@@ -52,6 +52,10 @@ def resolve(J, y, acc_drift, q, qd, goal, q_lo, q_hi, q_rest, distance, gradient
             goal_p, axis_p, obstacle_p, limit_p, posture_p, damping_p, A, b, qdd):  # fmt: skip
     """Fill the summed metric ``A`` (n, n), force ``b`` (n,) and ``qdd`` (n,); True if solved.
 
+    Longer than 80 lines on purpose: one compiled call per step, written statement for statement
+    as its numpy oracle so that the two stay bit-identical and can be read side by side; split,
+    each part would be another dispatch per step.
+
     ``goal_p``: gain, damping, softness, metric_max, metric_min, metric_length, metric_alpha,
     boost, boost_length; ``axis_p``: gain, damping, metric; ``obstacle_p``: margin, gain,
     gain_length, damping, damping_length, damping_eps, velocity_gate, radius, metric,

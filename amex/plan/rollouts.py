@@ -30,6 +30,9 @@ and formula), computed only for the pairs that a bounding sphere about the joint
 not rule out (the proxy is zero beyond the margin), which spares most pairs at most knots.
 :func:`rollout_costs_numpy` is the reference the compiled version is tested against. No
 derivative is taken anywhere (the sampler needs none).
+
+Over 400 lines on purpose: the rollout model and its compiled cost kernel together, because the
+model lays out the kernel's packed arguments and both must change together.
 """
 
 from __future__ import annotations

@@ -15,6 +15,10 @@ scene, Task 0), :meth:`pause`, :meth:`resume`, :meth:`step`, :meth:`set_speed`, 
 :meth:`set_obstacle`, :meth:`start_recording`, :meth:`stop_recording`, :meth:`close`. A command
 that changes the episode stops the running one at its next outer step and the thread starts the
 next. The page reads :attr:`state` (a :class:`LiveState`, replaced at every outer step).
+
+Over 400 lines on purpose: one class, the live session's state (method switches, pause and single
+steps, goal edits, the logged episode), whose handlers share one lock and its state; split, that
+lock discipline would spread over modules.
 """
 
 from __future__ import annotations
