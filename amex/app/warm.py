@@ -8,7 +8,7 @@ AMEX on Task 3, ``make bench``, start-up). ``python -m amex.app.warm`` (run by `
 fills the cache by running a few steps of every registered method on an obstacle task, with our
 collision cost and the authors', dynamic and kinematic, and the disturbance observer, so that
 the first run of every method is already warm. On a cluster, run it once per CPU model with
-``NUMBA_CACHE_DIR`` on the shared file system (docs/running.md).
+``NUMBA_CACHE_DIR`` on the shared file system (docs/clusters.md).
 """
 
 from __future__ import annotations
