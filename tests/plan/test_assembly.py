@@ -178,10 +178,11 @@ def test_take_step_tells_small_steps_as_max_abs_does():
             if bad is not None:
                 step = step.copy()
                 step[7] = bad
-            out, r_acc = np.empty_like(x), np.empty_like(x)
-            small = take_step(x, step, q0, v0, 0.01, scale, 1e-3, out, r_acc)
+            out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(7)
+            small = take_step(x, step, q0, v0, 0.01, scale, 1e-3, out, r_acc, v_last)
             assert small == (float(np.max(np.abs(step))) < 1e-3)
             assert identical(out, x + step.reshape(x.shape))
+            assert identical(v_last, (out[-1] - out[-2]) / 0.01)
 
 
 def test_compiled_resampling_equals_numpy():

@@ -172,11 +172,16 @@ class CompiledSolve:
         return np.zeros(self.shape, dtype=bool)
 
     def evaluate(
-        self, x: np.ndarray, known: KnotFrames | None = None, r_acc: np.ndarray | None = None
+        self,
+        x: np.ndarray,
+        known: KnotFrames | None = None,
+        r_acc: np.ndarray | None = None,
+        v_last: np.ndarray | None = None,
     ) -> Iterate:
         """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`).
 
-        ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals.
+        ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals;
+        ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`).
         """
         problem, robot, c = self.problem, self.assembly.robot, self.constants
         if r_acc is None:
@@ -192,6 +197,7 @@ class CompiledSolve:
             q_prev,
             x[-1],
             c.final_weights,
+            v_last,
         )
         if T == 1:  # q_{T-1} is the fixed start
             J_fin = J_fin[:, self.n :]
@@ -273,7 +279,7 @@ class CompiledSolve:
     def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
         """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
         x, problem = point.x, self.problem
-        out, r_acc = np.empty_like(x), np.empty_like(x)
+        out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(self.n)
         small = take_step(
             x,
             step,
@@ -284,8 +290,9 @@ class CompiledSolve:
             tolerance,
             out,
             r_acc,
+            v_last,
         )
-        return self.evaluate(out, None, r_acc), small
+        return self.evaluate(out, None, r_acc, v_last), small
 
     def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
         """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
