@@ -30,11 +30,12 @@ from amex.plan.optimizer.assembly_kernels import (
 )
 from amex.plan.optimizer.band import solve_band
 from amex.plan.optimizer.final_terms import final_terms, final_weights
+from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import GUARD, KnotFrames, acceleration_scale
 from amex.plan.problem import TrajectoryProblem
 from amex.robot import RobotModel
 
-__all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized"]
+__all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized", "assembly_for"]
 
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
 _NO_ROWS = np.zeros((0, 0))
@@ -318,3 +319,22 @@ class CompiledSolve:
             return None
         problem = self.problem
         return KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
+
+
+def assembly_for(
+    robot: RobotModel,
+    problem: TrajectoryProblem,
+    assembly: CompiledAssembly | NumpyAssembly | None = None,
+) -> CompiledAssembly | NumpyAssembly:
+    """The iteration to solve ``problem`` on, compiled unless the authors' proxy is in play.
+
+    ``assembly`` (a new compiled one if None or of another robot), or the numpy one where the
+    proxy collision term is active (obstacles, capsules and a weight).
+    """
+    w = problem.costs.weights
+    collides = len(problem.obstacle_radii) and robot.capsules and w.collision > 0.0
+    if problem.costs.collision_cost == "proxy" and collides:
+        return NumpyAssembly(robot)
+    if assembly is None or assembly.robot is not robot:
+        return CompiledAssembly(robot)
+    return assembly
