@@ -8,6 +8,8 @@ pairs and Levenberg terms, and whole solves with both must agree, sign bits incl
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -158,6 +160,26 @@ def test_compiled_solve_equals_numpy_solve_where_steps_wake_pairs(robot, seed, m
     assert (a.iterations, a.converged) == (b.iterations, b.converged)
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_newton_on_the_compiled_iteration_equals_newton_on_numpy(robot, seed):
+    """The authors' solver and TCP final velocity, without the proxy term in play (no
+    obstacles, or the hinge term in its place)."""
+    rng = np.random.default_rng(200 + seed)
+    T, k = int(rng.choice([1, 2, 10, 60])), seed % 3
+    problem = problem_near_obstacles(robot, rng, T, k, True)
+    form = "hinge" if k else "proxy"
+    costs = TrajectoryCosts(problem.costs.weights, problem.costs.metric, "tcp", form)
+    problem = dataclasses.replace(problem, costs=costs)
+    q_init = robot.q0 + rng.normal(scale=0.3, size=(T + 1, robot.nv))
+    a = opt.solve_trajectory_newton(robot, problem, q_init)
+    b = opt.solve_trajectory_newton(robot, problem, q_init, assembly=NumpyAssembly(robot))
+    assert identical(a.q, b.q) and a.cost == b.cost
+    assert (a.iterations, a.converged) == (b.iterations, b.converged)
+    c = opt.solve_trajectory(robot, problem, q_init=q_init)  # and ours with these costs
+    d = opt.solve_trajectory(robot, problem, q_init=q_init, assembly=NumpyAssembly(robot))
+    assert identical(c.q, d.q) and c.cost == d.cost
+
+
 def test_a_reused_assembly_gives_the_same_solutions(robot):
     """CR keeps one assembly (buffers, Pinocchio data) from step to step: no state leaks."""
     rng = np.random.default_rng(5)
@@ -178,10 +200,11 @@ def test_take_step_tells_small_steps_as_max_abs_does():
             if bad is not None:
                 step = step.copy()
                 step[7] = bad
-            out, r_acc = np.empty_like(x), np.empty_like(x)
-            small = take_step(x, step, q0, v0, 0.01, scale, 1e-3, out, r_acc)
+            out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(7)
+            small = take_step(x, step, q0, v0, 0.01, scale, 1e-3, out, r_acc, v_last)
             assert small == (float(np.max(np.abs(step))) < 1e-3)
             assert identical(out, x + step.reshape(x.shape))
+            assert identical(v_last, (out[-1] - out[-2]) / 0.01)
 
 
 def test_compiled_resampling_equals_numpy():

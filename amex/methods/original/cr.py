@@ -57,7 +57,7 @@ class CROriginal(Method):
         dt: float = 0.01,
         robot: RobotModel | None = None,
     ) -> None:
-        from amex.plan.optimizer import TrajectoryCosts
+        from amex.plan.optimizer import CompiledAssembly, TrajectoryCosts
 
         super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
         c, robot, metric = self.config, self.robot, plan.metric
@@ -70,6 +70,7 @@ class CROriginal(Method):
             weights, metric, final_velocity_space="tcp", collision_cost=c.collision_form("proxy")
         )
         self.robot = robot
+        self.assembly = CompiledAssembly(robot)  # the solver's buffers, kept between steps
         self.reference_q = Q
         self.max_iterations = int(c.max_iterations)
         self.min_steps = int(c.min_steps)
@@ -122,7 +123,11 @@ class CROriginal(Method):
             costs=self.costs,
         )
         solution = solve_trajectory_newton(
-            self.robot, problem, np.vstack([last, self._x]), max_iterations=self.max_iterations
+            self.robot,
+            problem,
+            np.vstack([last, self._x]),
+            max_iterations=self.max_iterations,
+            assembly=self.assembly,
         )
         self._x = solution.q[1:]
         self._status = CRStatus(

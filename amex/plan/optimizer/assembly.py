@@ -30,11 +30,12 @@ from amex.plan.optimizer.assembly_kernels import (
 )
 from amex.plan.optimizer.band import solve_band
 from amex.plan.optimizer.final_terms import final_terms, final_weights
+from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import GUARD, KnotFrames, acceleration_scale
 from amex.plan.problem import TrajectoryProblem
 from amex.robot import RobotModel
 
-__all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized"]
+__all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized", "assembly_for"]
 
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
 _NO_ROWS = np.zeros((0, 0))
@@ -172,11 +173,16 @@ class CompiledSolve:
         return np.zeros(self.shape, dtype=bool)
 
     def evaluate(
-        self, x: np.ndarray, known: KnotFrames | None = None, r_acc: np.ndarray | None = None
+        self,
+        x: np.ndarray,
+        known: KnotFrames | None = None,
+        r_acc: np.ndarray | None = None,
+        v_last: np.ndarray | None = None,
     ) -> Iterate:
         """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`).
 
-        ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals.
+        ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals;
+        ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`).
         """
         problem, robot, c = self.problem, self.assembly.robot, self.constants
         if r_acc is None:
@@ -192,6 +198,7 @@ class CompiledSolve:
             q_prev,
             x[-1],
             c.final_weights,
+            v_last,
         )
         if T == 1:  # q_{T-1} is the fixed start
             J_fin = J_fin[:, self.n :]
@@ -273,7 +280,7 @@ class CompiledSolve:
     def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
         """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
         x, problem = point.x, self.problem
-        out, r_acc = np.empty_like(x), np.empty_like(x)
+        out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(self.n)
         small = take_step(
             x,
             step,
@@ -284,8 +291,9 @@ class CompiledSolve:
             tolerance,
             out,
             r_acc,
+            v_last,
         )
-        return self.evaluate(out, None, r_acc), small
+        return self.evaluate(out, None, r_acc, v_last), small
 
     def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
         """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
@@ -311,3 +319,22 @@ class CompiledSolve:
             return None
         problem = self.problem
         return KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
+
+
+def assembly_for(
+    robot: RobotModel,
+    problem: TrajectoryProblem,
+    assembly: CompiledAssembly | NumpyAssembly | None = None,
+) -> CompiledAssembly | NumpyAssembly:
+    """The iteration to solve ``problem`` on, compiled unless the authors' proxy is in play.
+
+    ``assembly`` (a new compiled one if None or of another robot), or the numpy one where the
+    proxy collision term is active (obstacles, capsules and a weight).
+    """
+    w = problem.costs.weights
+    collides = len(problem.obstacle_radii) and robot.capsules and w.collision > 0.0
+    if problem.costs.collision_cost == "proxy" and collides:
+        return NumpyAssembly(robot)
+    if assembly is None or assembly.robot is not robot:
+        return CompiledAssembly(robot)
+    return assembly

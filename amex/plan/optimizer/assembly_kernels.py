@@ -317,11 +317,14 @@ def take_step(
     tolerance: float,
     out: np.ndarray,
     r_acc: np.ndarray,
+    v_last: np.ndarray,
 ) -> bool:
     """``out = x + step`` and its acceleration residuals; whether every ``|step|`` is small.
 
-    ``step`` (nT,); ``r_acc`` as :func:`acceleration_residuals` fills it. The answer is the
-    solver's ``max |step| < tolerance`` (False with a NaN).
+    ``step`` (nT,); ``r_acc`` as :func:`acceleration_residuals` fills it; ``v_last`` (n,) the
+    final joint velocity ``(q_T - q_{T-1}) / dt`` of ``out`` (``q_0`` the start for T = 1), as
+    :func:`~amex.plan.optimizer.final_terms.final_terms` computes it. The answer is the solver's
+    ``max |step| < tolerance`` (False with a NaN).
     """
     T, n = x.shape
     flat_x, flat_out = x.reshape(-1), out.reshape(-1)
@@ -331,4 +334,7 @@ def take_step(
         flat_out[i] = flat_x[i] + s
         large += 0 if abs(s) < tolerance else 1
     acceleration_residuals(out, q_start, v_start, dt, scale, r_acc)
+    for j in range(n):
+        before = out[T - 2, j] if T > 1 else q_start[j]
+        v_last[j] = (out[T - 1, j] - before) / dt
     return large == 0

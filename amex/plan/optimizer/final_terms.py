@@ -42,6 +42,7 @@ def final_terms(
     q_prev: np.ndarray,
     q_last: np.ndarray,
     weights: np.ndarray | None = None,
+    v: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Residuals of the four final terms, shape (m,), and their Jacobian, shape (m, 2n).
 
@@ -51,7 +52,8 @@ def final_terms(
     (:func:`~amex.plan.kinematics_kernels.final_terms_joint`), bit for bit
     :func:`final_terms_numpy`, which the TCP velocity (the original's) uses; its two
     matrix-vector products are numpy's (``dot``, the BLAS call of ``@``, with less overhead).
-    ``weights``: :func:`final_weights` of the problem's costs, if already at hand.
+    ``weights``: :func:`final_weights` of the problem's costs, ``v``: the final joint velocity
+    ``(q_last - q_prev) / dt``, if already at hand.
     """
     c, dt, n = problem.costs, problem.dt, len(q_last)
     if c.final_velocity_space == "tcp":
@@ -59,7 +61,8 @@ def final_terms(
     pin.computeJointJacobians(model, data, q_last)
     oMf = pin.updateFramePlacement(model, data, fid)
     J = pin.getFrameJacobian(model, data, fid, _LWA)
-    v = (q_last - q_prev) / dt
+    if v is None:
+        v = (q_last - q_prev) / dt
     Jz = np.empty((3, n))
     residual = np.empty(9 + n)
     jac = np.empty((9 + n, 2 * n))
@@ -78,7 +81,7 @@ def final_terms(
         residual,
         jac,
     )
-    residual[6 + n :] = w[3] * Jz.dot(v)
+    np.multiply(Jz.dot(v), w[3], out=residual[6 + n :])  # w[3] (Jz @ v)
     return residual, jac
 
 

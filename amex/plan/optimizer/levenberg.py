@@ -15,7 +15,7 @@ from functools import cache
 import numpy as np
 
 from amex.core.errors import ConfigError, SolverError
-from amex.plan.optimizer.assembly import CompiledAssembly
+from amex.plan.optimizer.assembly import CompiledAssembly, assembly_for
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import KnotFrames, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
@@ -74,8 +74,8 @@ def solve_trajectory(
             (:class:`KnotFrames`; CR passes those of its last solution, shifted).
         assembly: the iteration's implementation and buffers (:mod:`.assembly`; CR passes
             its own, kept between solves); default: a new :class:`CompiledAssembly`. The
-            authors' proxy collision term always runs on :class:`NumpyAssembly`, the numpy
-            oracle, which gives the same numbers.
+            authors' proxy collision term, where in play, runs on :class:`NumpyAssembly`, the
+            numpy oracle, which gives the same numbers (:func:`~.assembly.assembly_for`).
 
     Returns:
         The best trajectory found, with the frames at its knots; the cost never increases from
@@ -92,11 +92,7 @@ def solve_trajectory(
             "max_iterations >= 0, tolerance >= 0, damping > 0",
         )
     _retain_freed_memory()
-    if problem.costs.collision_cost == "proxy":
-        assembly = NumpyAssembly(robot)
-    elif assembly is None or assembly.robot is not robot:
-        assembly = CompiledAssembly(robot)
-    solve = assembly.begin(problem)
+    solve = assembly_for(robot, problem, assembly).begin(problem)
     x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
     if init_frames is not None and init_frames.poses.position.shape[2] != len(x):
         init_frames = None

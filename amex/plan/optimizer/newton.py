@@ -10,12 +10,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
-from amex.plan.optimizer.band import solve_band
-from amex.plan.optimizer.linearize import Evaluation, evaluate, linearize
-from amex.plan.optimizer.residuals import free_knots, initial_guess, residuals
+from amex.plan.optimizer.assembly import (
+    CompiledAssembly,
+    CompiledSolve,
+    Iterate,
+    Linearized,
+    assembly_for,
+)
+from amex.plan.optimizer.linearize import Evaluation
+from amex.plan.optimizer.numpy_assembly import NumpyAssembly, NumpySolve
+from amex.plan.optimizer.residuals import Point, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
@@ -23,20 +29,19 @@ __all__ = ["solve_trajectory_newton"]
 
 
 def _capped_step(
-    current: Evaluation,
+    solve: CompiledSolve | NumpySolve,
+    point: Iterate | Point,
+    model: Linearized | Evaluation,
     lam: float,
     max_step: float,
-    shape: tuple[int, ...],
     problem: TrajectoryProblem,
 ) -> tuple[np.ndarray, float]:
     """``Delta = -(H + lambda I)^-1 g``, scaled to at most ``max_step`` per joint; its size."""
-    band = np.array(current.equations.hessian)
-    band[0] += lam
-    try:
-        delta = solve_band(band, -current.equations.gradient)  # solveh_banded's dpbsv, directly
-    except (LinAlgError, ValueError) as e:
-        raise SolverError(f"Newton Cholesky failed: {e}", problem) from e
-    delta = delta.reshape(shape)
+    try:  # no pair is ever woken: the band is H + lambda I
+        delta = solve.damped_step(point, model, solve.woken(), lam)  # type: ignore[arg-type]
+    except SolverError as e:
+        raise SolverError(f"Newton Cholesky failed: {e.__cause__}", problem) from e.__cause__
+    delta = delta.reshape(point.x.shape)
     size = float(np.max(np.abs(delta)))
     if max_step > 0.0 and size > max_step:
         delta *= max_step / size
@@ -53,6 +58,7 @@ def solve_trajectory_newton(
     max_step: float = 1.0,
     stop_tolerance: float = 1e-2,
     max_evaluations: int = 1000,
+    assembly: CompiledAssembly | NumpyAssembly | None = None,
 ) -> TrajectorySolution:
     """The authors' Newton method (module notes) from ``q_init`` (default: all knots at the start).
 
@@ -63,32 +69,36 @@ def solve_trajectory_newton(
     below ``stop_tolerance``, after ``max_iterations`` steps or ``max_evaluations`` cost
     evaluations.
 
+    ``assembly``: the iteration's implementation and buffers, as for
+    :func:`~amex.plan.optimizer.levenberg.solve_trajectory` (:func:`~.assembly.assembly_for`).
+
     Returns:
         The trajectory; ``converged`` tells whether a tolerance, not a limit, stopped it.
 
     Raises:
         SolverError: if the cost is not finite at the start or the factorization fails.
     """
-    data = robot.model.createData()
+    solve = assembly_for(robot, problem, assembly).begin(problem)
     x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
-    current = evaluate(robot, data, problem, x)
-    fx = current.equations.cost
+    point = solve.evaluate(x)
+    current = solve.linearize(point)  # type: ignore[arg-type]
+    fx = point.cost
     if not math.isfinite(fx):
         raise SolverError(f"non-finite trajectory cost {fx} at the initial guess", problem)
     lam, alpha, evaluations, iterations, converged = damping, 1.0, 1, 0, False
     while True:
         iterations += 1
-        delta, size = _capped_step(current, lam, max_step, x.shape, problem)
+        delta, size = _capped_step(solve, point, current, lam, max_step, problem)
         if lam < 2.0 and size < 0.1 * stop_tolerance:  # the lazy stop: no update
             converged = True
             break
         while True:  # line search
             trial = x + alpha * delta
-            point = residuals(robot, data, problem, trial)
+            trial_point = solve.evaluate(trial)
             evaluations += 1
-            if math.isfinite(point.cost) and point.cost <= fx:
-                x, fx = trial, point.cost
-                current = linearize(robot, problem, point)
+            if math.isfinite(trial_point.cost) and trial_point.cost <= fx:
+                x, fx, point = trial, trial_point.cost, trial_point
+                current = solve.linearize(point)  # type: ignore[arg-type]
                 if alpha > 0.9:
                     lam *= 0.5
                 alpha = math.sqrt(alpha)
