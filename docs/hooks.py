@@ -453,7 +453,7 @@ class Table(NamedTuple):
 
 
 #: The ablation's steps committed under docs/data/runs/ablation/ (conf/experiment/ablation/).
-ABLATION_STEPS = ("1_harness", "2_controller")
+ABLATION_STEPS = ("1_harness", "2_controller", "3_methods", "4_dynamic")
 
 TABLES: tuple[Table, ...] = (
     Table(
