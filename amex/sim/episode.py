@@ -18,8 +18,8 @@ from typing import Protocol
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
-from amex.control import kernels
 from amex.control.collision import CollisionModel
 from amex.control.disturbance import DisturbanceConfig, make_inner_controller
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
@@ -28,6 +28,8 @@ from amex.core.errors import AmexError, SimulationError, WriteError
 from amex.core.types import command_problem
 from amex.methods.base import Method, Observation
 from amex.robot import RobotModel
+from amex.sim import step_kernel
+from amex.sim.inner_step import StepMemory
 from amex.sim.loop import LoopConfig, Recorder, StepRecord, Trace, authors_samples
 from amex.sim.metrics import (
     SUCCESS_005_RADIUS,
@@ -39,6 +41,9 @@ from amex.sim.metrics import (
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
 from amex.sim.simulation import MismatchConfig, Simulation
+from amex.sim.step_kernel import BOTH, CONTROL, MEASURE, STOP
+
+_LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 class Probe(Protocol):
@@ -194,6 +199,16 @@ def run_episode(
 def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> EpisodeResult:
     """The two-rate loop (module notes), one function: its locals are the 1 kHz loop's state.
 
+    Two kinds of step. An inner step of the plain controller (no disturbance compensation) makes
+    the library calls the step needs (Pinocchio's kinematics and inverse dynamics, coal's
+    distances, ``mj_step``) and two compiled calls: :func:`~amex.sim.step_kernel.episode_step`
+    (the history, path length, goal and stop rule, the collision task and the OSC solve) and
+    :func:`~amex.sim.step_kernel.clip_torque`. Every other step (the outer steps, the step
+    before one under ``state_lag``, every step with disturbance compensation) builds a
+    :class:`RobotState`, whose quantities the methods, the recorder and the compensation read,
+    and runs the same compiled phases around the method's step. Both give the numbers of
+    :func:`amex.sim.episode_reference.run_reference`, the loop in Python, bit for bit.
+
     Longer than 80 lines on purpose: splitting the inner step into calls would cost attribute
     look-ups and calls at every one of up to 10,000 steps an episode.
     """
@@ -211,52 +226,86 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
     obstacles = scenario.obstacles_at(0.0)
     if collision is not None:
         collision.set_obstacles(obstacles)
-    goal = scenario.goal_at(0.0)
-    gx, gy, gz = goal.tolist()
-    goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
     kinematic = loop.kinematic
     detect_contacts = kinematic and scenario.n_obstacles > 0
     no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
-    q_history = e.q_history
+    memory = StepMemory(
+        robot, pdata, osc, collision, scenario, loop, dt, e.q_history, qpos, qvel, qfrc
+    )
+    mem, x, zero_copy = memory.mem, memory.x, memory.zero_copy
+    compiled = plain or kinematic  # the compiled CONTROL phase (else the compensation's torque)
+    step, clip = step_kernel.episode_step, step_kernel.clip_torque
+    model, fid, zero_acc = robot.model, robot.tcp_frame_id, robot.zero_velocity
+    fk, jacobians, rnea = pin.forwardKinematics, pin.computeJointJacobians, pin.rnea
+    place, frame_jacobian = pin.updateFramePlacement, pin.getFrameJacobian
+    frame_acc = pin.getFrameClassicalAcceleration
+    distances = collision is not None and collision.zero_copy
+    if collision is not None:
+        gm, gd = collision.geom_model, collision.geom_data
+    place_geometry, compute_distances = pin.updateGeometryPlacements, pin.computeDistances
+    qacc_sim = mjd.qacc
     lag = loop.state_lag
-    seen_tcp: list[float] | None = None  # the lagging TCP position of the stop rule
     seen_y: np.ndarray | None = None  # the lagging task state methods see
     seen_yd: np.ndarray | None = None
     sum_sq_acc = 0.0
     collided = False
     failure = ""
     command = Command()
-    distance = math.inf
-    t = 0.0
+    col_on = False  # the held command tracks the collision task
     k = 0
     trace = e.trace
-    tcp_prev = None
-    state: RobotState | None = None
     try:
         for k in range(n_steps + 1):
             if probe is not None:
                 probe(k, mjd)
-            t = k * dt
             outer = k % substeps == 0
+            if compiled and not outer and not (lag and (k + 1) % substeps == 0):
+                # an inner step: the library calls and two compiled calls (docstring)
+                fk(model, pdata, qpos, qvel, zero_acc)
+                jacobians(model, pdata)
+                place(model, pdata, fid)
+                J = frame_jacobian(model, pdata, fid, _LWA)
+                drift = frame_acc(model, pdata, fid, _LWA).vector
+                if not zero_copy:
+                    memory.sync()
+                if moving_obstacles:
+                    obstacles = scenario.obstacles_at(k * dt)
+                    sim.set_obstacles(obstacles)
+                    if collision is not None:
+                        collision.set_obstacles(obstacles)
+                if col_on:  # coal's results, read in place by the step (CollisionModel.update)
+                    if distances:
+                        place_geometry(model, pdata, gm, gd)
+                        compute_distances(gm, gd)
+                    else:
+                        collision.update(pdata)  # type: ignore[union-attr]
+                code = step(mem, J, drift, k, BOTH)
+                if code:
+                    if code == STOP:
+                        break
+                    raise osc.solver_error(memory.info)
+                if kinematic:
+                    qacc = x
+                    mjd.time += dt
+                    if detect_contacts:
+                        mujoco.mj_kinematics(mjm, mjd)
+                        mujoco.mj_collision(mjm, mjd)
+                else:
+                    clip(mem, rnea(model, pdata, qpos, qvel, x))
+                    mj_step(mjm, mjd)
+                    qacc = qacc_sim
+                sum_sq_acc += float(qacc.dot(qacc))  # (the same BLAS ddot as qacc @ qacc)
+                if mjd.ncon:
+                    collided = True
+                continue
+            t = k * dt
             # copies on outer steps (observations and logs keep them), views otherwise
             q = qpos.copy() if outer else qpos
             v = qvel.copy() if outer else qvel
             state = RobotState(robot, pdata, q, v)
-            q_history[k] = q
-            tx, ty, tz = tcp = state.y_list[:3]
-            if tcp_prev is not None:  # the TCP path's length, step by step
-                trace.path_length += math.sqrt(
-                    (tx - tcp_prev[0]) ** 2 + (ty - tcp_prev[1]) ** 2 + (tz - tcp_prev[2]) ** 2
-                )
-            tcp_prev = tcp
-            if t <= goal_moves_until:
-                goal = scenario.goal_at(t)
-                gx, gy, gz = goal.tolist()
-            px, py, pz = state.y_list[:3] if seen_tcp is None else seen_tcp
-            distance = math.sqrt((px - gx) ** 2 + (py - gy) ** 2 + (pz - gz) ** 2)
-            if distance <= loop.stop_radius:
-                break
-            if k == n_steps:
+            if not zero_copy:
+                memory.sync()
+            if step(mem, state.J, state.acc_drift, k, MEASURE) == STOP:
                 break
             if moving_obstacles:
                 obstacles = scenario.obstacles_at(t)
@@ -264,8 +313,8 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
                 if collision is not None:
                     collision.set_obstacles(obstacles)
             if outer:
-                trace.outer(state, collision, pdata)
-                seen = goal if sensor is None else sensor.measure(t)
+                trace.outer(state, collision, pdata)  # (coal's distances for this state)
+                seen = memory.goal() if sensor is None else sensor.measure(t)
                 obs = _observe(
                     t,
                     q,
@@ -279,27 +328,34 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
                 command = _method_step(method, obs, k == 0, trace, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
                     break
-            if lag:  # what the next step's stop rule and observation see
-                seen_tcp = state.y_list[:3]
-                if (k + 1) % substeps == 0:
-                    seen_y, seen_yd = state.y, state.yd
-            if kinematic:
-                qacc = osc.accelerations(state, command)
-                tau = no_torque
-                kernels.euler_inplace(qpos, qvel, qacc, dt)
-                mjd.time += dt
-                if detect_contacts:
-                    mujoco.mj_kinematics(mjm, mjd)
-                    mujoco.mj_collision(mjm, mjd)
-            else:
-                if plain:
-                    tau = osc.torque_into(state, command, qfrc)
+                if compiled and command is not memory.command:
+                    memory.hold(command)
+                    col_on = memory.collision_on
+            if lag and (k + 1) % substeps == 0:  # what the next outer step's observation sees
+                seen_y, seen_yd = state.y, state.yd
+            if compiled:
+                if col_on and not outer:
+                    collision.update(pdata)  # type: ignore[union-attr]
+                if step(mem, state.J, state.acc_drift, k, CONTROL):
+                    raise osc.solver_error(memory.info)
+                if kinematic:
+                    qacc = x.copy() if outer else x
+                    tau = no_torque
+                    mjd.time += dt
+                    if detect_contacts:
+                        mujoco.mj_kinematics(mjm, mjd)
+                        mujoco.mj_collision(mjm, mjd)
                 else:
-                    tau = inner.torque(state, command)
-                    qfrc[:] = tau
+                    clip(mem, rnea(model, pdata, qpos, qvel, x))
+                    tau = qfrc
+                    mj_step(mjm, mjd)
+                    qacc = qacc_sim
+            else:
+                tau = inner.torque(state, command)
+                qfrc[:] = tau
                 mj_step(mjm, mjd)
-                qacc = mjd.qacc
-            sum_sq_acc += float(qacc.dot(qacc))  # (the same BLAS ddot as qacc @ qacc)
+                qacc = qacc_sim
+            sum_sq_acc += float(qacc.dot(qacc))
             if mjd.ncon:
                 collided = True
             if outer:  # NaNs persist, so checking at the outer rate loses nothing
@@ -313,9 +369,10 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
         raise  # a record could not be written (a full disk): the run stops, the episode is redone
     except AmexError as error:
         failure = f"solver: {error}"
-    if state is not None:
-        trace.axis = state.y_list[3:6]
-    return e.result(k, t, distance, sum_sq_acc, collided, failure)
+    if memory.measured:
+        trace.axis = memory.axis
+    trace.path_length = memory.path_length
+    return e.result(k, k * dt, memory.distance, sum_sq_acc, collided, failure)
 
 
 def _observe(
