@@ -18,12 +18,12 @@ from amex.control import kernels
 from amex.control.osc import Command
 from amex.control.state import RobotState
 from amex.core.errors import AmexError, SimulationError, WriteError
-from amex.sim.episode import _check_simulation, _Episode, _method_step, _observe
+from amex.sim.episode_setup import Episode, check_simulation, method_step, observe
 from amex.sim.loop import Recorder, StepRecord
 from amex.sim.metrics import EpisodeResult
 
 
-def run_reference(e: _Episode, recorder: Recorder | None = None) -> EpisodeResult:
+def run_reference(e: Episode, recorder: Recorder | None = None) -> EpisodeResult:
     """The two-rate loop of :func:`amex.sim.episode._run` in Python and numpy (the oracle)."""
     robot, method, scenario, loop = e.robot, e.method, e.scenario, e.loop
     sim, sensor, collision, osc, inner = e.sim, e.sensor, e.collision, e.osc, e.inner
@@ -92,7 +92,7 @@ def run_reference(e: _Episode, recorder: Recorder | None = None) -> EpisodeResul
             if outer:
                 trace.outer(state, collision, pdata)
                 seen = goal if sensor is None else sensor.measure(t)
-                obs = _observe(
+                obs = observe(
                     t,
                     q,
                     v,
@@ -102,7 +102,7 @@ def run_reference(e: _Episode, recorder: Recorder | None = None) -> EpisodeResul
                     obstacles,
                     radii,
                 )
-                command = _method_step(method, obs, k == 0, trace, robot.nv)
+                command = method_step(method, obs, k == 0, trace, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
                     break
             if lag:  # what the next step's stop rule and observation see
@@ -129,7 +129,7 @@ def run_reference(e: _Episode, recorder: Recorder | None = None) -> EpisodeResul
             if mjd.ncon:
                 collided = True
             if outer:  # NaNs persist, so checking at the outer rate loses nothing
-                _check_simulation(mjd, speed_limit)
+                check_simulation(mjd, speed_limit)
                 if recorder is not None:
                     internals = method.internals()
                     recorder.record(StepRecord(t, state, obs, command, internals, tau, qacc))

@@ -95,7 +95,19 @@ def _int64_at(typingctx, address):  # type: ignore[no-untyped-def]
 @numba.njit(cache=True)
 def _floats(mem: np.ndarray, slot: int, size: int) -> np.ndarray:
     """The float64 array of ``size`` at the address in ``mem[slot]``."""
-    return numba.carray(_float64_at(mem[slot]), (size,))
+    return numba.carray(_float64_at(mem[slot]), (size,))  # type: ignore[call-arg]
+
+
+@numba.njit(cache=True)
+def _matrix(mem: np.ndarray, slot: int, rows: int, cols: int) -> np.ndarray:
+    """The C-ordered float64 matrix (rows, cols) at the address in ``mem[slot]``."""
+    return numba.carray(_float64_at(mem[slot]), (rows, cols))  # type: ignore[call-arg]
+
+
+@numba.njit(cache=True)
+def _ints(mem: np.ndarray, slot: int, size: int) -> np.ndarray:
+    """The int64 array of ``size`` at the address in ``mem[slot]``."""
+    return numba.carray(_int64_at(mem[slot]), (size,))  # type: ignore[call-arg]
 
 
 @numba.njit(cache=True)
@@ -104,7 +116,7 @@ def _rows(mem: np.ndarray, slot: int, rows: int, stride: int, width: int) -> np.
 
     (The rows' padding beyond ``width`` is never read.)
     """
-    return numba.carray(_float64_at(mem[slot]), (rows, stride))[:, :width]
+    return _matrix(mem, slot, rows, stride)[:, :width]
 
 
 @numba.njit(cache=True)
@@ -113,7 +125,7 @@ def _measure(mem: np.ndarray, k: int, qpos: np.ndarray, tcp: np.ndarray) -> int:
     n = mem[N_JOINTS]
     loop = _floats(mem, LOOP, LOOP_SIZE)
     const = _floats(mem, CONSTANTS, CONSTANTS_SIZE)
-    history = numba.carray(_float64_at(mem[HISTORY]), (mem[N_STEPS] + 1, n))
+    history = _matrix(mem, HISTORY, mem[N_STEPS] + 1, n)
     for i in range(n):
         history[k, i] = qpos[i]
     two = const[SQUARE]
@@ -150,17 +162,17 @@ def _collision_terms(mem: np.ndarray, col: np.ndarray, n: int) -> None:
         return
     n_pairs = mem[N_PAIRS]
     table = _rows(mem, TABLE, n_pairs, mem[TABLE_STRIDE], 10)
-    J_world = numba.carray(_float64_at(mem[JOINT_JACOBIANS]), (n, 6)).T  # column major (6, n)
-    support = numba.carray(_float64_at(mem[SUPPORT]), (n_pairs, n))
-    pair_obstacle = numba.carray(_int64_at(mem[PAIR_OBSTACLE]), (n_pairs,))
-    centers = numba.carray(_float64_at(mem[CENTERS]), (mem[N_OBSTACLES], 3))
+    J_world = _matrix(mem, JOINT_JACOBIANS, n, 6).T  # column major (6, n)
+    support = _matrix(mem, SUPPORT, n_pairs, n)
+    pair_obstacle = _ints(mem, PAIR_OBSTACLE, n_pairs)
+    centers = _matrix(mem, CENTERS, mem[N_OBSTACLES], 3)
     margin = _floats(mem, CONSTANTS, CONSTANTS_SIZE)[MARGIN]
     if kind == HINGE:
         collision_kernels.hinge_terms(col, table, J_world, support, pair_obstacle, centers, margin)
         return
     placements = _rows(mem, PLACEMENTS, mem[N_GEOMS], mem[PLACEMENT_STRIDE], 12)
-    pair_arm = numba.carray(_int64_at(mem[PAIR_ARM]), (n_pairs,))
-    reach = numba.carray(_float64_at(mem[REACH]), (mem[N_ARM],))
+    pair_arm = _ints(mem, PAIR_ARM, n_pairs)
+    reach = _floats(mem, REACH, mem[N_ARM])
     collision_kernels.proxy_terms(
         col, table, placements, J_world, support, pair_obstacle, pair_arm, centers, reach, margin
     )
@@ -177,7 +189,7 @@ def _control(
 ) -> int:
     """The CONTROL phase (module notes): q_ddot* into the controller's work space."""
     n = mem[N_JOINTS]
-    ws = numba.carray(_float64_at(mem[WORKSPACE]), (2 * n + 2, n))
+    ws = _matrix(mem, WORKSPACE, 2 * n + 2, n)
     targets = _floats(mem, TARGETS, 14 + 2 * n)  # kernels.targets_size
     col = _floats(mem, COL, 1 + n)
     params = _floats(mem, PARAMS, kernels.HDIAG + 2 * n)
@@ -210,7 +222,7 @@ def episode_step(mem: np.ndarray, J: np.ndarray, drift: np.ndarray, k: int, phas
     n = mem[N_JOINTS]
     qpos = _floats(mem, QPOS, n)
     qvel = _floats(mem, QVEL, n)
-    tcp = numba.carray(_float64_at(mem[TCP_POSE]), (4, 3)).T  # (3, 4): rotation, then position
+    tcp = _matrix(mem, TCP_POSE, 4, 3).T  # (3, 4): rotation (column major), then position
     if phase & MEASURE and _measure(mem, k, qpos, tcp) == STOP:
         return STOP
     if phase & CONTROL:
