@@ -18,12 +18,15 @@ from amex.control import kernels
 from amex.control.osc import Command
 from amex.control.state import RobotState
 from amex.core.errors import AmexError, SimulationError, WriteError
+from amex.sim.episode import Probe
 from amex.sim.episode_setup import Episode, check_simulation, method_step, observe
 from amex.sim.loop import Recorder, StepRecord
 from amex.sim.metrics import EpisodeResult
 
 
-def run_reference(e: Episode, recorder: Recorder | None = None) -> EpisodeResult:
+def run_reference(
+    e: Episode, recorder: Recorder | None = None, probe: Probe | None = None
+) -> EpisodeResult:
     """The two-rate loop of :func:`amex.sim.episode._run` in Python and numpy (the oracle)."""
     robot, method, scenario, loop = e.robot, e.method, e.scenario, e.loop
     sim, sensor, collision, osc, inner = e.sim, e.sensor, e.collision, e.osc, e.inner
@@ -62,6 +65,8 @@ def run_reference(e: Episode, recorder: Recorder | None = None) -> EpisodeResult
     state: RobotState | None = None
     try:
         for k in range(n_steps + 1):
+            if probe is not None:
+                probe(k, mjd)
             t = k * dt
             outer = k % substeps == 0
             # copies on outer steps (observations and logs keep them), views otherwise

@@ -67,6 +67,8 @@ class StepMemory:
         qpos: the simulator's joint positions (a view of its state) [rad].
         qvel: the simulator's joint velocities [rad/s].
         qfrc: the simulator's applied joint forces, where the clipped torque goes [N m].
+        in_place: read the TCP placement and joint Jacobians in Pinocchio's memory where its
+            layout allows; False: always through copies (:meth:`sync`; tests).
 
     Attributes:
         mem: the address vector, length :data:`~amex.sim.step_kernel.ADDRESSES`.
@@ -88,6 +90,7 @@ class StepMemory:
         qpos: np.ndarray,
         qvel: np.ndarray,
         qfrc: np.ndarray,
+        in_place: bool = True,
     ) -> None:
         n = robot.nv
         self.osc, self.data, self.frame_id = osc, data, robot.tcp_frame_id
@@ -103,7 +106,7 @@ class StepMemory:
 
         tcp = _tcp_view(data, self.frame_id)
         joint_jacobians = data.J
-        zero_copy = tcp is not None and not joint_jacobians.flags.owndata
+        zero_copy = in_place and tcp is not None and not joint_jacobians.flags.owndata
         zero_copy = zero_copy and joint_jacobians.flags.f_contiguous
         self.zero_copy = zero_copy
         self._tcp = tcp if zero_copy and tcp is not None else np.zeros(12)
