@@ -181,7 +181,17 @@ def method_step(
 
 
 def check_command(command: Command) -> None:
-    """A :class:`SimulationError` where a part of ``command`` is not finite."""
+    """A :class:`SimulationError` where a part of ``command`` is not finite.
+
+    One sum of squares first (the common, finite command); where it is not finite (a NaN, an
+    infinity or values too large to square) the parts are checked one by one.
+    """
+    squares = 0.0
+    for part in command:
+        if part is not None:
+            squares += float(part @ part)
+    if math.isfinite(squares):
+        return
     for part in command:
         if part is not None and not np.isfinite(part).all():
             raise SimulationError("nan_command", "the method returned a non-finite command")

@@ -121,9 +121,14 @@ class StepMemory:
         put(sk.TARGETS, memory.targets)
         put(sk.COL, memory.col)
         put(sk.PARAMS, osc.held_params)
+        self._keep += [memory.params, memory.params_alone]  # (hold switches between them)
+        self._alone = memory.params_alone
+        self._params_at = _address(memory.params), _address(memory.params_alone)
         put(sk.TORQUE_LOW, memory.torque_low)
         put(sk.TORQUE_HIGH, memory.torque_high)
         put(sk.TORQUE_OUT, qfrc)
+        speed_limit = loop.speed_limit_factor * robot.velocity_limit
+        put(sk.SPEED_LIMIT, np.ascontiguousarray(speed_limit, dtype=float))
         self.x = memory.ws[n + 1]  # q_ddot* of the last CONTROL phase (a view)
 
         goal = scenario.goal_at(0.0)
@@ -172,9 +177,7 @@ class StepMemory:
         """Hold ``command``: the controller packs it, the step reads its constants and switches."""
         osc = self.osc
         osc.hold(command)
-        params = osc.held_params
-        self._keep.append(params)
-        self.mem[sk.PARAMS] = _address(params)
+        self.mem[sk.PARAMS] = self._params_at[osc.held_params is self._alone]
         self.collision_on = osc.collision_on and self._kind != sk.NO_COLLISION
         self.mem[sk.COLLISION] = self._kind if self.collision_on else sk.NO_COLLISION
         self.command = command

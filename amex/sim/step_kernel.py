@@ -48,12 +48,12 @@ NO_COLLISION, HINGE, PROXY = 0, 1, 2
 (
     QPOS, QVEL, TCP_POSE, JOINT_JACOBIANS, TABLE, PLACEMENTS, HISTORY, WORKSPACE, TARGETS, COL,
     PARAMS, TORQUE_LOW, TORQUE_HIGH, TORQUE_OUT, LOOP, CONSTANTS, SUPPORT, PAIR_OBSTACLE,
-    PAIR_ARM, CENTERS, REACH,
+    PAIR_ARM, CENTERS, REACH, SPEED_LIMIT,
     # ... then sizes and switches
     N_JOINTS, N_PAIRS, TABLE_STRIDE, PLACEMENT_STRIDE, N_GEOMS, N_ARM, N_OBSTACLES, N_STEPS,
     KINEMATIC, LAG, COLLISION,
-) = range(32)  # fmt: skip
-ADDRESSES = 32
+) = range(33)  # fmt: skip
+ADDRESSES = 33
 
 # the loop's state (slot LOOP), float64
 (
@@ -236,3 +236,14 @@ def clip_torque(mem: np.ndarray, tau: np.ndarray) -> None:
     n = mem[N_JOINTS]
     out = _floats(mem, TORQUE_OUT, n)
     kernels.clip_into(out, tau, _floats(mem, TORQUE_LOW, n), _floats(mem, TORQUE_HIGH, n))
+
+
+@numba.njit(cache=True)
+def speeds_within_limit(mem: np.ndarray) -> bool:
+    """Whether every ``|q_dot_i| <= limit_i`` (False for a NaN), as ``check_simulation`` tests."""
+    n = mem[N_JOINTS]
+    qvel, limit = _floats(mem, QVEL, n), _floats(mem, SPEED_LIMIT, n)
+    for i in range(n):  # noqa: SIM110 (a loop, which Numba compiles without a generator)
+        if not abs(qvel[i]) <= limit[i]:
+            return False
+    return True
