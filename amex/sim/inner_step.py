@@ -24,6 +24,7 @@ import pinocchio as pin
 from amex.control.collision import CollisionModel
 from amex.control.osc import OperationalSpaceController
 from amex.control.tasks import ProxyMap
+from amex.core.errors import InputError
 from amex.core.types import Command
 from amex.robot import RobotModel
 from amex.sim import step_kernel as sk
@@ -96,7 +97,7 @@ class StepMemory:
         self.osc, self.data, self.frame_id = osc, data, robot.tcp_frame_id
         for name, a in (("qpos", qpos), ("qvel", qvel), ("qfrc", qfrc), ("history", history)):
             if a.dtype != np.float64 or not a.flags.c_contiguous:
-                raise ValueError(f"{name}: a C-contiguous float64 array is needed")
+                raise InputError(f"{name}: a C-contiguous float64 array is needed")
         mem = np.zeros(sk.ADDRESSES, dtype=np.int64)
         self._keep: list[np.ndarray] = []  # every array whose address is in mem
 
@@ -156,7 +157,7 @@ class StepMemory:
             table, placements = collision.table, collision.placements
             for name, a in (("table", table), ("placements", placements)):
                 if a.strides[1] != 8 or a.strides[0] % 8:
-                    raise ValueError(f"collision {name}: rows of adjacent float64 are needed")
+                    raise InputError(f"collision {name}: rows of adjacent float64 are needed")
             put(sk.TABLE, table)
             put(sk.PLACEMENTS, placements)
             put(sk.SUPPORT, np.ascontiguousarray(collision.support))
