@@ -2,8 +2,8 @@
 
 :func:`normal_equations` assembles ``A q_ddot = b`` of :mod:`amex.control.osc` (the weighted
 tasks of Eq. 5 with the PD targets of Eq. 6 and the regularizer H of Eq. 4) and
-:func:`cholesky_solve` solves it. The controller's constants travel as one record with named
-fields (:func:`params_dtype`, :func:`pack_params`). Compiled without ``fastmath``: IEEE
+:func:`cholesky_solve` solves it. The controller's constants travel as one float64 vector
+at named offsets (:func:`pack_params`, :func:`params_dtype`). Compiled without ``fastmath``: IEEE
 operations in program order, so results are bit-for-bit reproducible across runs and worker
 counts. Why one compiled call, and what it costs: docs/controller.md.
 """
@@ -11,7 +11,6 @@ counts. Why one compiled call, and what it costs: docs/controller.md.
 from __future__ import annotations
 
 from functools import lru_cache
-from typing import Any
 
 import numba
 import numpy as np
@@ -21,29 +20,42 @@ from amex.core.types import PD
 _F8 = np.float64
 
 
+#: The scalar fields of the controller's constants, in the order of :func:`params_dtype`; then
+#: ``hdiag`` (n) and ``q_rest`` (n). The compiled kernels read the packed vector at these offsets.
+PARAM_SCALARS = (
+    "pos_kp",  # position task (Eq. 6, first row of Eq. 5)
+    "pos_kd",
+    "pos_weight",
+    "axis_kp",  # axis task (second row)
+    "axis_kd",
+    "axis_weight",
+    "damping_velocity",  # -weight * Kd of the damping task (times v)
+    "damping_posture",  # weight * Kp of the damping task (times q_rest - q)
+    "joint_kp",  # joint task (CR's joint targets)
+    "joint_kd",
+    "joint_weight",
+    "col_kp",  # collision task (third row; target 0 penetration)
+    "col_kd",
+    "col_weight",
+    "drift",  # 1: subtract the drift J_dot v of the TCP tasks (the original: 0, no drift term)
+)
+(
+    POS_KP, POS_KD, POS_WEIGHT, AXIS_KP, AXIS_KD, AXIS_WEIGHT, DAMPING_VELOCITY, DAMPING_POSTURE,
+    JOINT_KP, JOINT_KD, JOINT_WEIGHT, COL_KP, COL_KD, COL_WEIGHT, DRIFT,
+) = range(len(PARAM_SCALARS))  # fmt: skip
+HDIAG = len(PARAM_SCALARS)  # diagonal of H (Eq. 4) plus the damping task's weight, n values
+
+
 @lru_cache(maxsize=8)
 def params_dtype(n: int) -> np.dtype:
-    """The record of an n-joint controller's constants (:func:`pack_params`), C-aligned."""
-    fields = [
-        ("pos_kp", _F8),  # position task (Eq. 6, first row of Eq. 5)
-        ("pos_kd", _F8),
-        ("pos_weight", _F8),
-        ("axis_kp", _F8),  # axis task (second row)
-        ("axis_kd", _F8),
-        ("axis_weight", _F8),
-        ("damping_velocity", _F8),  # -weight * Kd of the damping task (times v)
-        ("damping_posture", _F8),  # weight * Kp of the damping task (times q_rest - q)
-        ("joint_kp", _F8),  # joint task (CR's joint targets)
-        ("joint_kd", _F8),
-        ("joint_weight", _F8),
-        ("col_kp", _F8),  # collision task (third row; target 0 penetration)
-        ("col_kd", _F8),
-        ("col_weight", _F8),
-        ("drift", np.bool_),  # subtract the drift J_dot v of the TCP tasks (the original: no)
-        ("hdiag", _F8, (n,)),  # diagonal of H (Eq. 4) plus the damping task's weight
-        ("q_rest", _F8, (n,)),  # posture of the damping task [rad]
-    ]
-    return np.dtype(fields, align=True)
+    """Named fields over the packed constants of an n-joint controller (:func:`pack_params`).
+
+    Every field is float64, so ``params.view(params_dtype(n))[0]`` names the packed vector's
+    entries without a copy: the scalars of :data:`PARAM_SCALARS`, then ``hdiag`` (n,) and
+    ``q_rest`` (n,), the damping task's posture [rad].
+    """
+    fields = [(name, _F8) for name in PARAM_SCALARS]
+    return np.dtype([*fields, ("hdiag", _F8, (n,)), ("q_rest", _F8, (n,))])
 
 
 def pack_params(
@@ -56,16 +68,21 @@ def pack_params(
     hdiag: np.ndarray,
     q_rest: np.ndarray,
 ) -> np.ndarray:
-    """The record of the controller's gains, regularizer diagonal and rest posture, shape (1,)."""
-    params = np.zeros(1, dtype=params_dtype(len(hdiag)))
-    p = params[0]
+    """The controller's gains, regularizer diagonal and rest posture, packed, shape (15 + 2n,).
+
+    A plain float64 vector (a compiled call unboxes it faster than a record); the kernels read
+    it at the offsets :data:`POS_KP` ... :data:`HDIAG`, and :func:`params_dtype` names them.
+    """
+    n = len(hdiag)
+    params = np.zeros(HDIAG + 2 * n)
+    p = params.view(params_dtype(n))[0]
     p["pos_kp"], p["pos_kd"], p["pos_weight"] = pos.kp, pos.kd, pos.weight
     p["axis_kp"], p["axis_kd"], p["axis_weight"] = dir_.kp, dir_.kd, dir_.weight
     p["damping_velocity"] = -damping.weight * damping.kd
     p["damping_posture"] = damping.weight * damping.kp
     p["joint_kp"], p["joint_kd"], p["joint_weight"] = joint.kp, joint.kd, joint.weight
     p["col_kp"], p["col_kd"], p["col_weight"] = col.kp, col.kd, col.weight
-    p["drift"] = drift
+    p["drift"] = 1.0 if drift else 0.0
     p["hdiag"], p["q_rest"] = hdiag, q_rest
     return params
 
@@ -125,28 +142,28 @@ def normal_equations(  # per-step inputs as they come (nothing copied), constant
         targets: the command, packed by :func:`pack_targets`: the TCP tasks with y* and y_dot*
             if ``has_y``, the joint task with q* and q_dot* if ``has_q``.
         col: the collision task ``(phi_col, J_col)`` (1 + n,); active when phi_col > 0.
-        params: the controller's constants, a :func:`params_dtype` record, shape (1,).
+        params: the controller's constants, packed by :func:`pack_params`.
     """
-    p = params[0]
+    p = params
     n = v.shape[0]
     A = ws[:n]
     b = ws[n]
     for i in range(n):
         for j in range(n):
             A[i, j] = 0.0
-        A[i, i] = p.hdiag[i]
-        b[i] = p.damping_velocity * v[i]
+        A[i, i] = p[HDIAG + i]
+        b[i] = p[DAMPING_VELOCITY] * v[i]
     if targets[0] != 0.0:
         _add_tcp_tasks(A, b, J, v, tcp_pose, drift, targets[2:8], targets[8:14], p)
-    if p.damping_posture != 0.0:
+    if p[DAMPING_POSTURE] != 0.0:
         for i in range(n):
-            b[i] += p.damping_posture * (p.q_rest[i] - q[i])
+            b[i] += p[DAMPING_POSTURE] * (p[HDIAG + n + i] - q[i])
     if targets[1] != 0.0:
         tq, tqd = targets[14 : 14 + n], targets[14 + n : 14 + 2 * n]
-        c = p.joint_weight
+        c = p[JOINT_WEIGHT]
         for i in range(n):
             A[i, i] += c
-            b[i] += c * (p.joint_kp * (tq[i] - q[i]) + p.joint_kd * (tqd[i] - v[i]))
+            b[i] += c * (p[JOINT_KP] * (tq[i] - q[i]) + p[JOINT_KD] * (tqd[i] - v[i]))
     if col[0] > 0.0:
         _add_collision_task(A, b, v, col[0], col[1:], p)
 
@@ -159,7 +176,7 @@ def _tcp_targets(
     drift: np.ndarray,
     ty: np.ndarray,
     tyd: np.ndarray,
-    p: Any,
+    p: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``rho`` (6,) and the axis block ``W_a`` (3, 3) of the position and axis tasks.
 
@@ -168,8 +185,8 @@ def _tcp_targets(
     ``T_a^T T_a = J_w^T W_a J_w / c_axis``.
     """
     n = v.shape[0]
-    kp, kd, wp = p.pos_kp, p.pos_kd, p.pos_weight
-    kpa, kda, wa = p.axis_kp, p.axis_kd, p.axis_weight
+    kp, kd, wp = p[POS_KP], p[POS_KD], p[POS_WEIGHT]
+    kpa, kda, wa = p[AXIS_KP], p[AXIS_KD], p[AXIS_WEIGHT]
     tw = np.empty(6)
     for r in range(6):
         acc = 0.0
@@ -186,7 +203,7 @@ def _tcp_targets(
     ey = bz * zx - bx * zz + wz * dx - wx * dz
     ez = bx * zy - by * zx + wx * dy - wy * dx
     d0, d1, d2 = drift[0], drift[1], drift[2]
-    if not p.drift:  # the original: no drift term
+    if p[DRIFT] == 0.0:  # the original: no drift term
         ex = ey = ez = d0 = d1 = d2 = 0.0
     # Eq. 6 minus the drift: the task accelerations the joint accelerations must produce
     rho = np.empty(6)
@@ -217,11 +234,11 @@ def _add_tcp_tasks(
     drift: np.ndarray,
     ty: np.ndarray,
     tyd: np.ndarray,
-    p: Any,
+    p: np.ndarray,
 ) -> None:
     """Add the position and axis tasks, ``A += J^T diag(c_pos I, W_a) J``, ``b += J^T rho``."""
     n = v.shape[0]
-    wp = p.pos_weight
+    wp = p[POS_WEIGHT]
     rho, W = _tcp_targets(J, v, tcp_pose, drift, ty, tyd, p)
     WJ = np.empty((3, n))  # axis block W_a J_w
     for r in range(3):
@@ -242,15 +259,15 @@ def _add_tcp_tasks(
 
 @numba.njit(cache=True)
 def _add_collision_task(
-    A: np.ndarray, b: np.ndarray, v: np.ndarray, col_phi: float, Jc: np.ndarray, p: Any
+    A: np.ndarray, b: np.ndarray, v: np.ndarray, col_phi: float, Jc: np.ndarray, p: np.ndarray
 ) -> None:
     """Add the collision task: target 0 penetration, drift neglected (CollisionMap); Jc (n,)."""
     n = v.shape[0]
-    c = p.col_weight
+    c = p[COL_WEIGHT]
     phid = 0.0
     for j in range(n):
         phid += Jc[j] * v[j]
-    target = p.col_kp * (0.0 - col_phi) + p.col_kd * (0.0 - phid)
+    target = p[COL_KP] * (0.0 - col_phi) + p[COL_KD] * (0.0 - phid)
     for i in range(n):
         for j in range(n):
             A[i, j] += c * Jc[i] * Jc[j]

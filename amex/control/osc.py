@@ -112,6 +112,29 @@ class Objective(NamedTuple):
     b: np.ndarray
 
 
+class KernelMemory(NamedTuple):
+    """The controller's arrays that compiled steps read and write in place (fixed for its life).
+
+    Attributes:
+        ws: the work space of :func:`~amex.control.kernels.osc_accelerations`: A, b, the
+            solution x = q_ddot* (row n + 1), the Cholesky factor, shape (2n + 2, n).
+        targets: the held command, packed (:func:`~amex.control.kernels.pack_targets`).
+        col: the collision task's ``(phi, J)``, shape (1 + n,).
+        params: the constants with the damping task (:func:`~amex.control.kernels.pack_params`).
+        params_alone: the constants of a joint command tracked alone (``joint_only``).
+        torque_low: lower torque limits, shape (n,) [N m].
+        torque_high: upper torque limits, shape (n,) [N m].
+    """
+
+    ws: np.ndarray
+    targets: np.ndarray
+    col: np.ndarray
+    params: np.ndarray
+    params_alone: np.ndarray
+    torque_low: np.ndarray
+    torque_high: np.ndarray
+
+
 def _accumulate(
     A: np.ndarray, b: np.ndarray, terms: TaskTerms, gains: PD, target: np.ndarray, target_vel
 ) -> None:
@@ -174,7 +197,7 @@ class OperationalSpaceController:
         )
         no_damping = PD(0.0, 0.0, 0.0)  # the joint task alone (module notes)
         self._params_alone = kernels.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
-        self._active = self._params  # the record of the held command
+        self._active = self._params  # the packed constants of the held command
 
     def regularizer(self) -> np.ndarray:
         """The diagonal of H in Eq. 4, shape (n,)."""
@@ -184,12 +207,42 @@ class OperationalSpaceController:
             return g.reg * np.asarray(metric, dtype=float)
         return np.full(n, g.reg)
 
-    def _hold(self, command: Command) -> None:
-        """Pack ``command`` for the kernels, once per new command object.
+    @property
+    def memory(self) -> KernelMemory:
+        """The arrays the compiled kernels work on (:class:`KernelMemory`)."""
+        return KernelMemory(
+            self._ws, self._targets, self._col, self._params, self._params_alone, self._lo, self._hi
+        )
+
+    @property
+    def held_params(self) -> np.ndarray:
+        """The packed constants of the held command (:attr:`KernelMemory.params` or ``_alone``)."""
+        return self._active
+
+    @property
+    def collision_on(self) -> bool:
+        """Whether the collision task is tracked for the held command."""
+        return self._col_on
+
+    def hold(self, command: Command) -> None:
+        """Pack ``command`` for the kernels (targets, task switches), as a solve does for a new one.
 
         The loop holds one command for a whole outer period: its arrays must not change while it
         is held (a method answers each step with a new Command).
         """
+        self._hold(command)
+
+    def solver_error(self, info: int) -> SolverError:
+        """The error of a failed solve (LAPACK ``info``), carrying the system in :attr:`memory`."""
+        n = self.robot.nv
+        ws = self._ws
+        return SolverError(
+            f"OSC normal equations not positive definite (info={info})",
+            Objective(ws[:n].copy(), ws[n].copy()),
+        )
+
+    def _hold(self, command: Command) -> None:
+        """Pack ``command`` for the kernels, once per new command object (:meth:`hold`)."""
         kernels.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
         self._alone = alone = command.q is not None and self.gains.joint_only  # (module notes)
         self._col_on = self.col_map is not None and not alone
@@ -272,11 +325,7 @@ class OperationalSpaceController:
             self._active,
         )
         if info != 0:
-            n = self.robot.nv
-            raise SolverError(
-                f"OSC normal equations not positive definite (info={info})",
-                Objective(ws[:n].copy(), ws[n].copy()),
-            )
+            raise self.solver_error(info)
         return self._x
 
     def torque(self, state: RobotState, command: Command) -> np.ndarray:

@@ -12,33 +12,29 @@ The loop, the two radii, the state lag and the kinematic simulation: ``docs/simu
 
 from __future__ import annotations
 
-import math
-import time
 from typing import Protocol
 
 import mujoco
 import numpy as np
+import pinocchio as pin
 
-from amex.control import kernels
-from amex.control.collision import CollisionModel
-from amex.control.disturbance import DisturbanceConfig, make_inner_controller
-from amex.control.osc import Command, OperationalSpaceController, OSCGains
+from amex.control.disturbance import DisturbanceConfig
+from amex.control.osc import Command, OSCGains
 from amex.control.state import RobotState
 from amex.core.errors import AmexError, SimulationError, WriteError
-from amex.core.types import command_problem
-from amex.methods.base import Method, Observation
+from amex.methods.base import Method
 from amex.robot import RobotModel
-from amex.sim.loop import LoopConfig, Recorder, StepRecord, Trace, authors_samples
-from amex.sim.metrics import (
-    SUCCESS_005_RADIUS,
-    EpisodeResult,
-    axis_error,
-    paper_sum_sq_acc,
-    plan_fidelity,
-)
-from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
+from amex.sim import step_kernel
+from amex.sim.episode_setup import Episode, check_simulation, method_step, observe
+from amex.sim.inner_step import StepMemory
+from amex.sim.loop import LoopConfig, Recorder, StepRecord
+from amex.sim.metrics import EpisodeResult
+from amex.sim.perception import PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
-from amex.sim.simulation import MismatchConfig, Simulation
+from amex.sim.simulation import MismatchConfig
+from amex.sim.step_kernel import BOTH, CONTROL, MEASURE, STOP
+
+_LWA = pin.LOCAL_WORLD_ALIGNED
 
 
 class Probe(Protocol):
@@ -46,98 +42,6 @@ class Probe(Protocol):
 
     def __call__(self, k: int, data: mujoco.MjData) -> None:
         """Called before inner step ``k`` reads the state from ``data``."""
-
-
-class _Episode:
-    """What the loop of one episode works with, built before its first step."""
-
-    def __init__(
-        self,
-        robot: RobotModel,
-        method: Method,
-        scenario: Scenario,
-        gains: OSCGains,
-        loop: LoopConfig,
-        perception: PerceptionConfig | None,
-        prediction: PredictionConfig | None,
-        mismatch: MismatchConfig | None,
-        disturbance: DisturbanceConfig | None,
-        reference_path: np.ndarray | None = None,
-    ) -> None:
-        self.robot, self.method, self.scenario, self.loop = robot, method, scenario, loop
-        self.sim = Simulation(robot, scenario, loop.inner_hz, mismatch)
-        perception = perception or PerceptionConfig()
-        prediction = prediction or PredictionConfig()
-        self.sensor = None
-        if not perception.exact or prediction.enabled:
-            noise_rng = np.random.default_rng(
-                np.random.SeedSequence([scenario.seed, scenario.task, scenario.env, 1])
-            )
-            self.sensor = GoalSensor(scenario.goal_at, perception, prediction, noise_rng)
-        n = scenario.n_obstacles
-        self.collision = CollisionModel(robot, scenario.obstacle_radii) if n else None
-        self.osc = OperationalSpaceController(robot, gains, self.collision)
-        self.dt = 1.0 / loop.inner_hz
-        self.n_steps = int(math.floor(loop.max_time * loop.inner_hz + 1e-9))
-        # the dynamic step's controller: the OSC itself, or the OSC with disturbance compensation
-        # (a kinematic simulation has no dynamics to compensate: it never uses one)
-        compensation = None if loop.kinematic else disturbance
-        self.inner = make_inner_controller(self.osc, self.dt, compensation)
-        self.q_history = np.empty((self.n_steps + 1, robot.nv))  # joint angles of every step
-        self.trace = Trace()
-        self.compute_times = self.trace.compute_times
-        self.reference_path = reference_path
-
-    def result(
-        self, k: int, t: float, distance: float, sum_sq_acc: float, collided: bool, failure: str
-    ) -> EpisodeResult:
-        """The episode's row, after its last step ``k`` at time ``t``."""
-        scenario, loop, compute_times = self.scenario, self.loop, self.compute_times
-        steps = self.q_history[: k + 1]
-        trace = self.trace
-        cpu = trace.cpu_times
-        period = 1.0 / loop.outer_hz
-        goal_end = scenario.goal_at(t)
-        final_time = float(t)
-        if loop.final_time == "samples":  # the authors' count (amex.sim.loop.authors_samples)
-            samples = authors_samples(
-                k, k == self.n_steps, self.method.finished, loop.max_time, self.dt
-            )
-            final_time = samples * self.dt
-        stops = getattr(self.method, "early_stops", None)  # a method with a time budget
-        budget_stops = stops / len(cpu) if isinstance(stops, int) and cpu else math.nan
-        fidelity = math.nan
-        if self.reference_path is not None and len(trace.tcp):
-            fidelity = plan_fidelity(np.array(trace.tcp), self.reference_path, goal_end)
-        return EpisodeResult(
-            task=scenario.task,
-            method=self.method.name,
-            env=scenario.env,
-            seed=scenario.seed,
-            success=bool(distance <= loop.success_radius) and not failure,
-            success_005=bool(distance <= SUCCESS_005_RADIUS) and not failure,
-            collided=collided,
-            final_distance=float(distance),
-            final_time=final_time,
-            sum_sq_acc=float(sum_sq_acc),
-            compute_time_median=float(np.median(compute_times)) if compute_times else math.nan,
-            compute_time_mean=float(np.mean(compute_times)) if compute_times else math.nan,
-            failure=failure,
-            sum_sq_acc_paper=(
-                paper_sum_sq_acc(steps, self.dt) if np.isfinite(steps).all() else math.nan
-            ),
-            int_sq_acc=float(sum_sq_acc) * self.dt,
-            compute_cpu_median=float(np.median(cpu)) if cpu else math.nan,
-            compute_cpu_mean=float(np.mean(cpu)) if cpu else math.nan,
-            deadline_misses=float(np.mean(np.asarray(cpu) > period)) if cpu else math.nan,
-            min_clearance=trace.clearance if scenario.n_obstacles else math.nan,
-            final_axis_error=axis_error(trace.axis, scenario.goal_axis),
-            path_length=trace.path_length,
-            plan_fidelity=fidelity,
-            compute_cpu_p95=float(np.percentile(cpu, 95)) if cpu else math.nan,
-            compute_cpu_max=float(np.max(cpu)) if cpu else math.nan,
-            budget_stops=budget_stops,
-        )
 
 
 def run_episode(
@@ -173,7 +77,7 @@ def run_episode(
         probe: called as ``probe(k, data)`` at the start of every inner step ``k``, with the
             simulator's ``MjData`` (``amex.app.bench_inner`` times the steps with it); None in runs.
     """
-    episode = _Episode(
+    episode = Episode(
         robot,
         method,
         scenario,
@@ -191,8 +95,18 @@ def run_episode(
     return result
 
 
-def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> EpisodeResult:
+def _run(e: Episode, recorder: Recorder | None, probe: Probe | None = None) -> EpisodeResult:
     """The two-rate loop (module notes), one function: its locals are the 1 kHz loop's state.
+
+    Two kinds of step. An inner step of the plain controller (no disturbance compensation) makes
+    the library calls the step needs (Pinocchio's kinematics and inverse dynamics, coal's
+    distances, ``mj_step``) and two compiled calls: :func:`~amex.sim.step_kernel.episode_step`
+    (the history, path length, goal and stop rule, the collision task and the OSC solve) and
+    :func:`~amex.sim.step_kernel.clip_torque`. Every other step (the outer steps, the step
+    before one under ``state_lag``, every step with disturbance compensation) builds a
+    :class:`RobotState`, whose quantities the methods, the recorder and the compensation read,
+    and runs the same compiled phases around the method's step. Both give the numbers of
+    :func:`amex.sim.episode_reference.run_reference`, the loop in Python, bit for bit.
 
     Longer than 80 lines on purpose: splitting the inner step into calls would cost attribute
     look-ups and calls at every one of up to 10,000 steps an episode.
@@ -211,52 +125,87 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
     obstacles = scenario.obstacles_at(0.0)
     if collision is not None:
         collision.set_obstacles(obstacles)
-    goal = scenario.goal_at(0.0)
-    gx, gy, gz = goal.tolist()
-    goal_moves_until = scenario.goal_stop_time if np.any(scenario.goal_velocity) else -1.0
     kinematic = loop.kinematic
     detect_contacts = kinematic and scenario.n_obstacles > 0
     no_torque = np.zeros(robot.nv)  # what a kinematic step logs as its torque
-    q_history = e.q_history
+    memory = StepMemory(
+        robot, pdata, osc, collision, scenario, loop, dt, e.q_history, qpos, qvel, qfrc
+    )
+    mem, x, zero_copy = memory.mem, memory.x, memory.zero_copy
+    compiled = plain or kinematic  # the compiled CONTROL phase (else the compensation's torque)
+    step, clip = step_kernel.episode_step, step_kernel.clip_torque
+    speeds_ok = step_kernel.speeds_within_limit
+    model, fid, zero_acc = robot.model, robot.tcp_frame_id, robot.zero_velocity
+    fk, jacobians, rnea = pin.forwardKinematics, pin.computeJointJacobians, pin.rnea
+    place, frame_jacobian = pin.updateFramePlacement, pin.getFrameJacobian
+    frame_acc = pin.getFrameClassicalAcceleration
+    distances = collision is not None and collision.zero_copy
+    if collision is not None:
+        gm, gd = collision.geom_model, collision.geom_data
+    place_geometry, compute_distances = pin.updateGeometryPlacements, pin.computeDistances
+    qacc_sim = mjd.qacc
     lag = loop.state_lag
-    seen_tcp: list[float] | None = None  # the lagging TCP position of the stop rule
     seen_y: np.ndarray | None = None  # the lagging task state methods see
     seen_yd: np.ndarray | None = None
     sum_sq_acc = 0.0
     collided = False
     failure = ""
     command = Command()
-    distance = math.inf
-    t = 0.0
+    col_on = False  # the held command tracks the collision task
     k = 0
     trace = e.trace
-    tcp_prev = None
-    state: RobotState | None = None
     try:
         for k in range(n_steps + 1):
             if probe is not None:
                 probe(k, mjd)
-            t = k * dt
             outer = k % substeps == 0
+            if compiled and not outer and not (lag and (k + 1) % substeps == 0):
+                # an inner step: the library calls and two compiled calls (docstring)
+                fk(model, pdata, qpos, qvel, zero_acc)
+                jacobians(model, pdata)
+                place(model, pdata, fid)
+                J = frame_jacobian(model, pdata, fid, _LWA)
+                drift = frame_acc(model, pdata, fid, _LWA).vector
+                if not zero_copy:
+                    memory.sync()
+                if moving_obstacles:
+                    obstacles = scenario.obstacles_at(k * dt)
+                    sim.set_obstacles(obstacles)
+                    if collision is not None:
+                        collision.set_obstacles(obstacles)
+                if col_on:  # coal's results, read in place by the step (CollisionModel.update)
+                    if distances:
+                        place_geometry(model, pdata, gm, gd)
+                        compute_distances(gm, gd)
+                    else:
+                        collision.update(pdata)  # type: ignore[union-attr]
+                code = step(mem, J, drift, k, BOTH)
+                if code:
+                    if code == STOP:
+                        break
+                    raise osc.solver_error(memory.info)
+                if kinematic:
+                    qacc = x
+                    mjd.time += dt
+                    if detect_contacts:
+                        mujoco.mj_kinematics(mjm, mjd)
+                        mujoco.mj_collision(mjm, mjd)
+                else:
+                    clip(mem, rnea(model, pdata, qpos, qvel, x))
+                    mj_step(mjm, mjd)
+                    qacc = qacc_sim
+                sum_sq_acc += float(qacc.dot(qacc))  # (the same BLAS ddot as qacc @ qacc)
+                if mjd.ncon:
+                    collided = True
+                continue
+            t = k * dt
             # copies on outer steps (observations and logs keep them), views otherwise
             q = qpos.copy() if outer else qpos
             v = qvel.copy() if outer else qvel
             state = RobotState(robot, pdata, q, v)
-            q_history[k] = q
-            tx, ty, tz = tcp = state.y_list[:3]
-            if tcp_prev is not None:  # the TCP path's length, step by step
-                trace.path_length += math.sqrt(
-                    (tx - tcp_prev[0]) ** 2 + (ty - tcp_prev[1]) ** 2 + (tz - tcp_prev[2]) ** 2
-                )
-            tcp_prev = tcp
-            if t <= goal_moves_until:
-                goal = scenario.goal_at(t)
-                gx, gy, gz = goal.tolist()
-            px, py, pz = state.y_list[:3] if seen_tcp is None else seen_tcp
-            distance = math.sqrt((px - gx) ** 2 + (py - gy) ** 2 + (pz - gz) ** 2)
-            if distance <= loop.stop_radius:
-                break
-            if k == n_steps:
+            if not zero_copy:
+                memory.sync()
+            if step(mem, state.J, state.acc_drift, k, MEASURE) == STOP:
                 break
             if moving_obstacles:
                 obstacles = scenario.obstacles_at(t)
@@ -264,9 +213,9 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
                 if collision is not None:
                     collision.set_obstacles(obstacles)
             if outer:
-                trace.outer(state, collision, pdata)
-                seen = goal if sensor is None else sensor.measure(t)
-                obs = _observe(
+                trace.outer(state, collision, pdata)  # (coal's distances for this state)
+                seen = memory.goal() if sensor is None else sensor.measure(t)
+                obs = observe(
                     t,
                     q,
                     v,
@@ -276,34 +225,42 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
                     obstacles,
                     radii,
                 )
-                command = _method_step(method, obs, k == 0, trace, robot.nv)
+                command = method_step(method, obs, k == 0, trace, robot.nv)
                 if method.finished:  # the method ended the execution (the authors' CR)
                     break
-            if lag:  # what the next step's stop rule and observation see
-                seen_tcp = state.y_list[:3]
-                if (k + 1) % substeps == 0:
-                    seen_y, seen_yd = state.y, state.yd
-            if kinematic:
-                qacc = osc.accelerations(state, command)
-                tau = no_torque
-                kernels.euler_inplace(qpos, qvel, qacc, dt)
-                mjd.time += dt
-                if detect_contacts:
-                    mujoco.mj_kinematics(mjm, mjd)
-                    mujoco.mj_collision(mjm, mjd)
-            else:
-                if plain:
-                    tau = osc.torque_into(state, command, qfrc)
+                if compiled and command is not memory.command:
+                    memory.hold(command)
+                    col_on = memory.collision_on
+            if lag and (k + 1) % substeps == 0:  # what the next outer step's observation sees
+                seen_y, seen_yd = state.y, state.yd
+            if compiled:
+                if col_on and not outer:
+                    collision.update(pdata)  # type: ignore[union-attr]
+                if step(mem, state.J, state.acc_drift, k, CONTROL):
+                    raise osc.solver_error(memory.info)
+                if kinematic:
+                    qacc = x.copy() if outer else x
+                    tau = no_torque
+                    mjd.time += dt
+                    if detect_contacts:
+                        mujoco.mj_kinematics(mjm, mjd)
+                        mujoco.mj_collision(mjm, mjd)
                 else:
-                    tau = inner.torque(state, command)
-                    qfrc[:] = tau
+                    clip(mem, rnea(model, pdata, qpos, qvel, x))
+                    tau = qfrc
+                    mj_step(mjm, mjd)
+                    qacc = qacc_sim
+            else:
+                tau = inner.torque(state, command)
+                qfrc[:] = tau
                 mj_step(mjm, mjd)
-                qacc = mjd.qacc
-            sum_sq_acc += float(qacc.dot(qacc))  # (the same BLAS ddot as qacc @ qacc)
+                qacc = qacc_sim
+            sum_sq_acc += float(qacc.dot(qacc))
             if mjd.ncon:
                 collided = True
             if outer:  # NaNs persist, so checking at the outer rate loses nothing
-                _check_simulation(mjd, speed_limit)
+                if not speeds_ok(mem):  # (one compiled comparison; the error says which)
+                    check_simulation(mjd, speed_limit)
                 if recorder is not None:
                     internals = method.internals()
                     recorder.record(StepRecord(t, state, obs, command, internals, tau, qacc))
@@ -313,75 +270,7 @@ def _run(e: _Episode, recorder: Recorder | None, probe: Probe | None = None) -> 
         raise  # a record could not be written (a full disk): the run stops, the episode is redone
     except AmexError as error:
         failure = f"solver: {error}"
-    if state is not None:
-        trace.axis = state.y_list[3:6]
-    return e.result(k, t, distance, sum_sq_acc, collided, failure)
-
-
-def _observe(
-    t: float,
-    q: np.ndarray,
-    v: np.ndarray,
-    y: np.ndarray,
-    yd: np.ndarray,
-    goal: np.ndarray,
-    obstacles: np.ndarray,
-    radii: np.ndarray,
-) -> Observation:
-    """The outer step's :class:`Observation`, its finiteness checked by one sum of squares.
-
-    Time, obstacles and radii are finite by construction (the scenario's motions). Where the sum
-    of squares of the other fields is not finite (a NaN, an infinity, or values too large to
-    square), the observation is built with its own checks, which raise the same
-    :class:`~amex.core.errors.InputError` naming the field as before, or pass huge finite values.
-    """
-    if math.isfinite(
-        float(q @ q) + float(v @ v) + float(y @ y) + float(yd @ yd) + float(goal @ goal)
-    ):
-        return Observation.prechecked(t, q, v, y, yd, goal, obstacles, radii)
-    return Observation(t, q, v, y, yd, goal, obstacles, radii)
-
-
-def _method_step(
-    method: Method, obs: Observation, first: bool, trace: Trace, n_joints: int
-) -> Command:
-    """The method's outer step (reset first at t = 0), timed (wall and thread CPU); checked.
-
-    A malformed answer, or any exception of a method other than ours (a plugin: an
-    ``Exception`` or ``SystemExit``), ends the episode as a :class:`SimulationError` whose reason
-    says what the method did; an :class:`AmexError` (a failed solve) passes on as such.
-    """
-    try:
-        if first:
-            method.reset(obs)
-        tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
-        command = method.step(obs)
-        trace.cpu_times.append((time.thread_time_ns() - cpu) * 1e-9)
-        trace.compute_times.append((time.perf_counter_ns() - tic) * 1e-9)
-    except AmexError:
-        raise
-    except (Exception, SystemExit) as error:
-        text = f"{type(error).__name__}: {error}".strip()[:300]
-        raise SimulationError(f"method: {text}", text) from error
-    if method.finished:
-        return command
-    problem = command_problem(command, n_joints)
-    if problem:
-        raise SimulationError(f"bad_command: {problem}", problem)
-    _check_command(command)
-    return command
-
-
-def _check_command(command: Command) -> None:
-    for part in command:
-        if part is not None and not np.isfinite(part).all():
-            raise SimulationError("nan_command", "the method returned a non-finite command")
-
-
-def _check_simulation(data: mujoco.MjData, speed_limit: np.ndarray) -> None:
-    """One comparison per step: a NaN fails ``<=`` as surely as a speed beyond the limit."""
-    v = data.qvel
-    if not (np.abs(v) <= speed_limit).all():
-        if not np.isfinite(v).all():
-            raise SimulationError("nan", "non-finite joint state")
-        raise SimulationError("diverged", "joint speed beyond the divergence limit")
+    if memory.measured:
+        trace.axis = memory.axis
+    trace.path_length = memory.path_length
+    return e.result(k, k * dt, memory.distance, sum_sq_acc, collided, failure)

@@ -4,7 +4,7 @@ import pinocchio as pin
 import pytest
 
 from amex.control.collision import CollisionModel
-from amex.control.kernels import clip_inplace, pack_params
+from amex.control.kernels import clip_inplace, pack_params, params_dtype
 from amex.control.osc import PD, Command, OperationalSpaceController, OSCGains, solve_objective
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, PositionMap
@@ -135,7 +135,7 @@ def test_a_nan_state_is_a_solver_error_carrying_the_system(robot):
 def test_kernel_params_name_every_gain_of_the_controller():
     pos, dir_, joint, col, damping = (PD(1.0 + i, 10.0 + i, 0.1 + i) for i in range(5))
     hdiag, q_rest = np.arange(1.0, 8.0), -np.arange(7.0)
-    p = pack_params(pos, dir_, joint, col, damping, False, hdiag, q_rest)[0]
+    p = pack_params(pos, dir_, joint, col, damping, False, hdiag, q_rest).view(params_dtype(7))[0]
     for prefix, pd in (("pos", pos), ("axis", dir_), ("joint", joint), ("col", col)):
         named = (p[f"{prefix}_kp"], p[f"{prefix}_kd"], p[f"{prefix}_weight"])
         assert named == (pd.kp, pd.kd, pd.weight)
