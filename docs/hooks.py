@@ -470,6 +470,10 @@ TABLES: tuple[Table, ...] = (
     ),
     Table("docs/generated/seeds/fig5.md", ("analysis.table", "docs/data/runs/seeds")),
     Table(
+        "docs/generated/original_seeds/fig5.md",
+        ("analysis.table", "docs/data/runs/original_seeds"),
+    ),
+    Table(
         "docs/generated/ablation/compare.md",
         (
             "analysis.compare",
