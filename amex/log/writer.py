@@ -64,16 +64,17 @@ from typing import TYPE_CHECKING, Any
 
 import foxglove
 import numpy as np
-from foxglove.channels import FrameTransformsChannel, JointStatesChannel
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from foxglove.messages import JointState, JointStates
+from foxglove.messages import FrameTransforms, JointState, JointStates, Timestamp
 
 from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
 from amex.log import messages as M
 from amex.log.files import WriteFailures, failure_cause, set_aside
-from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
+from amex.log.frames import WORLD_FRAME, LinkTransforms
+from amex.log.method_topic import MethodTopic
 from amex.log.scene import SceneChannels
+from amex.log.wire import encode_step, step_encoding
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
@@ -128,6 +129,13 @@ class EpisodeLogger:
             raise LogError(f"cannot create the log directory {self.path.parent}: {e}") from e
         self._links = LinkTransforms(robot)
         self._joint_names = list(robot.joint_names)
+        parts = self._links.constant_parts()
+        self._encoding = (
+            step_encoding(parts, self._joint_names)
+            if parts is not None and len(self._joint_names) == robot.model.nq == robot.nv
+            else None
+        )  # None: the messages are built as the SDK's objects (slower, the same bytes)
+        self._buffer = np.empty(self._encoding.size if self._encoding else 0, dtype=np.uint8)
         self._path_every = max(1, int(path_every))
         self._steps = 0
         self._t = 0.0
@@ -138,6 +146,7 @@ class EpisodeLogger:
             [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
         )
         self._goal_json = M.json_template([("t", 0), ("position", 3), ("distance", 0)])
+        self._numbers_json: dict[tuple[bool, ...], str] = {}  # /tcp, /goal, /command in one
 
         self._failures = WriteFailures()
         self._failures.attach()
@@ -158,8 +167,9 @@ class EpisodeLogger:
             raise LogError(f"cannot create the log file {self.part_path}: {e}") from e
         self._closed = False
         ctx = self._context
-        self._tf = FrameTransformsChannel("/tf", context=ctx)
-        self._joint_states = JointStatesChannel("/joint_states", context=ctx)
+        # the typed channels' topics and schemas, written with bytes encoded here (amex.log.wire)
+        self._tf = _protobuf_channel("/tf", FrameTransforms, ctx)
+        self._joint_states = _protobuf_channel("/joint_states", JointStates, ctx)
         self._scene = SceneChannels(
             ctx,
             M.points(np.asarray(plan.y)[:, :3], len(plan.y)),
@@ -172,8 +182,9 @@ class EpisodeLogger:
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
             for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
         }
-        self._method_kinds: dict[str, str] | None = None  # /method's schema, at the first step
+        self._method = MethodTopic()  # /method's schema, at the first step
         self._command_json: dict[tuple[bool, ...], str] = {}
+        self._bases = [self._json[topic].base for topic in ("/tcp", "/goal", "/command")]
         self._previous_handler: Any = None
         self._install_sigterm()
         try:
@@ -321,35 +332,25 @@ class EpisodeLogger:
             return
         t = step.t
         ns = round(t * 1e9)
-        stamp = sim_stamp(t)
         state = step.state
-        q, v = state.q, state.v
-        self._tf.log(self._links.message(q, stamp), log_time=ns)
-
-        qs, vs = q.tolist(), v.tolist()
-        qdd, tau = np.asarray(step.qacc).tolist(), np.asarray(step.tau).tolist()
-        joints = [
-            JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
-            for n, a, b, c, d in zip(self._joint_names, qs, vs, qdd, tau, strict=False)
-        ]
-        self._joint_states.log(JointStates(timestamp=stamp, joints=joints), log_time=ns)
+        self._log_joints(ns, state.q, state.v, step.qacc, step.tau)
 
         obs = step.observation
-        goal = obs.goal[:3]
         y, yd = obs.y.tolist(), obs.yd.tolist()  # (TCP position, z-axis) and their rates
+        gx, gy, gz = obs.goal[:3].tolist()
         tcp = y[:3]
-        gx, gy, gz = goal.tolist()
         distance = math.dist(tcp, (gx, gy, gz))
-        self._log_numbers("/tcp", self._tcp_json, (t, *y, *yd[:3], distance), ns)
-        self._log_numbers("/goal", self._goal_json, (t, gx, gy, gz, distance), ns)
-        self._log_command(t, step.command, ns)
+        self._log_numbers_of_step(t, y, yd, (gx, gy, gz), distance, step.command, ns)
 
-        internals = dict(step.internals)
-        plan = internals.pop("plan", None)
+        internals = step.internals
+        plan = None
+        if "plan" in internals:
+            internals = dict(internals)
+            plan = internals.pop("plan")
         self._log_method(t, internals, ns)
 
         scene = self._scene
-        scene.publish_world(t, goal, obs.obstacles)
+        scene.publish_world(t, obs.goal, obs.obstacles)
         self._last_tcp = (tcp[0], tcp[1], tcp[2])
         if self._steps % self._path_every == 0:
             scene.add_path_point(tcp[0], tcp[1], tcp[2])
@@ -362,55 +363,100 @@ class EpisodeLogger:
         if self._failures.cause:  # stop the episode: the rest of the log could not be written
             raise WriteError(self.part_path, self._failures.cause)
 
-    def _log_method(self, t: float, internals: dict[str, Any], ns: int) -> None:
+    def _log_joints(
+        self, ns: int, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, tau: np.ndarray
+    ) -> None:
+        """``/tf`` and ``/joint_states``: encoded in one compiled call (:mod:`amex.log.wire`)."""
+        encoding = self._encoding
+        if encoding is not None:
+            out = self._buffer
+            a, b = encode_step(
+                ns,
+                q,
+                v,
+                np.asarray(qacc, dtype=float),
+                np.asarray(tau, dtype=float),
+                encoding.blocks,
+                encoding.ends,
+                encoding.joint_index,
+                encoding.rotation,
+                out,
+            )
+            self._tf.base.log(out[:a].tobytes(), ns)
+            self._joint_states.base.log(out[a:b].tobytes(), ns)
+            return
+        stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)  # sim_stamp(t)
+        self._tf.base.log(self._links.message(q, stamp).encode(), ns)
+        qs, vs = q.tolist(), v.tolist()
+        qdd, taus = np.asarray(qacc).tolist(), np.asarray(tau).tolist()
+        joints = [
+            JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
+            for n, a, b, c, d in zip(self._joint_names, qs, vs, qdd, taus, strict=False)
+        ]
+        self._joint_states.base.log(JointStates(timestamp=stamp, joints=joints).encode(), ns)
+
+    def _log_numbers_of_step(
+        self,
+        t: float,
+        y: list[float],
+        yd: list[float],
+        goal: tuple[float, float, float],
+        distance: float,
+        command: Any,
+        ns: int,
+    ) -> None:
+        """``/tcp``, ``/goal`` and ``/command``, formatted by one %-template."""
+        values = [t, *y, *yd[:3], distance, t, *goal, distance, t]
+        present = []
+        for part in command:
+            present.append(part is not None)
+            if part is not None:
+                values += part.tolist()
+        key = tuple(present)
+        template = self._numbers_json.get(key)
+        if template is None:
+            command_json = self._command_template(command)
+            template = "\n".join((self._tcp_json, self._goal_json, command_json))
+            self._numbers_json[key] = template
+        if not math.isfinite(sum(values)):  # NaN/inf is not JSON: null (slow path, rare)
+            self._log_numbers("/tcp", self._tcp_json, (t, *y, *yd[:3], distance), ns)
+            self._log_numbers("/goal", self._goal_json, (t, *goal, distance), ns)
+            self._log_command(t, command, ns)
+            return
+        tcp, goal_text, command_text = (template % tuple(values)).encode().split(b"\n")
+        base_tcp, base_goal, base_command = self._bases
+        base_tcp.log(tcp, ns)
+        base_goal.log(goal_text, ns)
+        base_command.log(command_text, ns)
+
+    def _log_method(self, t: float, internals: Any, ns: int) -> None:
         """``/method``: the numbers, flags, texts and small number arrays of ``internals()``.
 
-        The channel and its schema are made at the first step from the values then; later a
-        key the schema lacks is left out, and a value of another kind is written as null.
+        The channel and its schema are made at the first step from the values then
+        (:class:`amex.log.method_topic.MethodTopic`).
         """
-        if self._method_kinds is None:
-            method: dict[str, Any] = {"t": t}
-            for key, value in internals.items():
-                if isinstance(value, np.ndarray):
-                    if value.size > 64 or value.ndim != 1:
-                        continue  # large arrays do not belong in a per-step JSON message
-                    value = value.tolist()
-                method[key] = value
-            schema = M.object_schema("amex.MethodInternals", method)
-            self._method_kinds = {k: v["type"] for k, v in schema["properties"].items()}
+        method = self._method
+        if method.kinds is None:
+            schema = method.schema(t, internals)
             channel = foxglove.Channel("/method", schema=schema, context=self._context)
             self._json["/method"] = channel
-        kinds = self._method_kinds
-        message: dict[str, Any] = {"t": t} if "t" in kinds else {}
-        for key, value in internals.items():
-            kind = kinds.get(key)
-            if kind is None or key == "t":
-                continue
-            if isinstance(value, np.ndarray):
-                if value.size > 64 or value.ndim != 1:
-                    continue  # as at the first step
-                numbers = value.dtype.kind in "fiu"  # tolist() gives Python ints and floats
-                value = value.tolist()
-                fits = kind == "array" if numbers else _kind_of(value) == kind
-            else:
-                known = _KINDS.get(type(value))
-                fits = known == kind if known is not None else _kind_of(value) == kind
-            message[key] = value if fits else None
-        self._json["/method"].base.log(M.dumps(message), ns)
+        self._json["/method"].base.log(method.encode(t, internals), ns)
+
+    def _command_template(self, command: Any) -> str:
+        """The %-template of ``/command`` for the parts ``command`` has (made at the first one)."""
+        present = tuple(part is not None for part in command)
+        template = self._command_json.get(present)
+        if template is None:
+            names = ("y_star", "yd_star", "q_star", "qd_star")
+            fields = [("t", 0)]
+            fields += [(k, len(p)) for k, p in zip(names, command, strict=False) if p is not None]
+            template = self._command_json[present] = M.json_template(fields)
+        return template
 
     def _log_command(self, t: float, command: Any, ns: int) -> None:
         """y*, y_dot* (and q*, q_dot*): whichever parts the command has."""
-        present = tuple(part is not None for part in command)
-        template = self._command_json.get(present)
         parts = [p.tolist() for p in command if p is not None]
-        if template is None:
-            keys = [
-                k
-                for k, p in zip(("y_star", "yd_star", "q_star", "qd_star"), present, strict=False)
-                if p
-            ]
-            fields = [("t", 0), *((k, len(v)) for k, v in zip(keys, parts, strict=True))]
-            template = self._command_json[present] = M.json_template(fields)
+        template = self._command_template(command)
         self._log_numbers("/command", template, (t, *(x for p in parts for x in p)), ns)
 
     def _log_numbers(self, topic: str, template: str, values: tuple[float, ...], ns: int) -> None:
@@ -438,19 +484,12 @@ class EpisodeLogger:
         self._outcome_written = True
 
 
-#: The schema kind of the common value types of ``internals()`` (what M.value_schema gives).
-_KINDS: dict[type, str] = {
-    bool: "boolean",
-    int: "number",
-    float: "number",
-    np.float64: "number",
-    np.int64: "number",
-    str: "string",
-}
-
-
-def _kind_of(value: Any) -> str | None:
-    """The schema kind (``number``, ``array``, ...) of one value, None if it has none."""
-    schema = M.value_schema(value)
-    return None if schema is None else schema["type"]
-
+def _protobuf_channel(topic: str, message: Any, context: foxglove.Context) -> foxglove.Channel:
+    """A channel for pre-encoded ``message`` bytes: the typed channel's schema and encoding."""
+    schema = message.get_schema()
+    return foxglove.Channel(
+        topic,
+        schema=foxglove.Schema(name=schema.name, encoding=schema.encoding, data=schema.data),
+        message_encoding="protobuf",
+        context=context,
+    )
