@@ -17,8 +17,10 @@ velocity, acceleration and effort (optional fields: always written). Compiled wi
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
+import foxglove
 import numba
 import numpy as np
 from foxglove.messages import FrameTransform, JointState, Quaternion, Vector3
@@ -48,8 +50,8 @@ class StepEncoding(NamedTuple):
 
 
 def step_encoding(
-    transforms: list[tuple[str, str, tuple[float, ...], tuple[float, ...], int]],
-    joint_names: list[str],
+    transforms: Sequence[tuple[str, str, tuple[float, ...], tuple[float, ...], int]],
+    joint_names: Sequence[str],
 ) -> StepEncoding:
     """The constant parts of the messages of ``transforms`` and ``joint_names``.
 
@@ -81,6 +83,23 @@ def step_encoding(
     size = len(joined) + 2 * 19 + len(transforms) * (6 + 19 + 38) + len(joint_names) * (6 + 36)
     return StepEncoding(
         np.frombuffer(joined, dtype=np.uint8).copy(), ends, index, rotation, int(size)
+    )
+
+
+def protobuf_channel(topic: str, message: Any, context: foxglove.Context) -> foxglove.Channel:
+    """A channel for pre-encoded ``message`` bytes: the SDK's typed channel's schema and encoding.
+
+    Args:
+        topic: the topic.
+        message: the Foxglove message class (e.g. ``foxglove.messages.FrameTransforms``).
+        context: the log's context.
+    """
+    schema = message.get_schema()
+    return foxglove.Channel(
+        topic,
+        schema=foxglove.Schema(name=schema.name, encoding=schema.encoding, data=schema.data),
+        message_encoding="protobuf",
+        context=context,
     )
 
 

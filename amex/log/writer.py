@@ -54,7 +54,6 @@ previous handler and re-delivers the signal to it.
 from __future__ import annotations
 
 import json
-import math
 import os
 import signal
 import threading
@@ -65,16 +64,17 @@ from typing import TYPE_CHECKING, Any
 import foxglove
 import numpy as np
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from foxglove.messages import FrameTransforms, JointState, JointStates, Timestamp
+from foxglove.messages import FrameTransforms, JointStates
 
 from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
 from amex.log import messages as M
+from amex.log.constants import log_constants
 from amex.log.files import WriteFailures, failure_cause, set_aside
-from amex.log.frames import WORLD_FRAME, LinkTransforms
-from amex.log.method_topic import MethodTopic
+from amex.log.frames import WORLD_FRAME
 from amex.log.scene import SceneChannels
-from amex.log.wire import encode_step, step_encoding
+from amex.log.step_topics import StepTopics
+from amex.log.wire import protobuf_channel
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
@@ -127,26 +127,13 @@ class EpisodeLogger:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise LogError(f"cannot create the log directory {self.path.parent}: {e}") from e
-        self._links = LinkTransforms(robot)
-        self._joint_names = list(robot.joint_names)
-        parts = self._links.constant_parts()
-        self._encoding = (
-            step_encoding(parts, self._joint_names)
-            if parts is not None and len(self._joint_names) == robot.model.nq == robot.nv
-            else None
-        )  # None: the messages are built as the SDK's objects (slower, the same bytes)
-        self._buffer = np.empty(self._encoding.size if self._encoding else 0, dtype=np.uint8)
+        self._constants = log_constants(robot, plan)
         self._path_every = max(1, int(path_every))
         self._steps = 0
         self._t = 0.0
         self._outcome_written = False
         self._closed = True
         self._last_tcp: tuple[float, float, float] | None = None
-        self._tcp_json = M.json_template(
-            [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
-        )
-        self._goal_json = M.json_template([("t", 0), ("position", 3), ("distance", 0)])
-        self._numbers_json: dict[tuple[bool, ...], str] = {}  # /tcp, /goal, /command in one
 
         self._failures = WriteFailures()
         self._failures.attach()
@@ -168,11 +155,11 @@ class EpisodeLogger:
         self._closed = False
         ctx = self._context
         # the typed channels' topics and schemas, written with bytes encoded here (amex.log.wire)
-        self._tf = _protobuf_channel("/tf", FrameTransforms, ctx)
-        self._joint_states = _protobuf_channel("/joint_states", JointStates, ctx)
+        self._tf = protobuf_channel("/tf", FrameTransforms, ctx)
+        self._joint_states = protobuf_channel("/joint_states", JointStates, ctx)
         self._scene = SceneChannels(
             ctx,
-            M.points(np.asarray(plan.y)[:, :3], len(plan.y)),
+            np.asarray(plan.y)[:, :3],
             scenario.obstacle_radii,
             obstacles_move=bool(np.any(scenario.obstacle_velocity)),
             method=str(metadata.get("method", "")),
@@ -182,9 +169,9 @@ class EpisodeLogger:
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
             for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
         }
-        self._method = MethodTopic()  # /method's schema, at the first step
-        self._command_json: dict[tuple[bool, ...], str] = {}
-        self._bases = [self._json[topic].base for topic in ("/tcp", "/goal", "/command")]
+        step_channels = {"/tf": self._tf, "/joint_states": self._joint_states}
+        step_channels.update((k, self._json[k]) for k in ("/tcp", "/goal", "/command"))
+        self._topics = StepTopics(ctx, self._constants, step_channels)
         self._previous_handler: Any = None
         self._install_sigterm()
         try:
@@ -247,11 +234,13 @@ class EpisodeLogger:
         os.replace(self.part_path, self.path)
 
     def _all_channels(self) -> list[Any]:
+        method = self._topics.method_channel
         return [
             self._tf,
             self._joint_states,
             *self._scene.channels(),
             *self._json.values(),
+            *([method] if method is not None else []),
         ]
 
     def _install_sigterm(self) -> None:
@@ -308,9 +297,9 @@ class EpisodeLogger:
                 "name": robot.name,
                 "urdf_path": robot.urdf_path,
                 "package_dirs": list(getattr(robot.description, "package_dirs", ()) or ()),
-                "joint_names": self._joint_names,
+                "joint_names": self._constants.joint_names,
                 "q0": robot.q0,
-                "links": [list(link) for link in self._links.links],
+                "links": [list(link) for link in self._constants.links.links],
             },
         )
         self._write_metadata(
@@ -322,7 +311,7 @@ class EpisodeLogger:
                 "world_frame": WORLD_FRAME,
             },
         )
-        self._json["/reference"].base.log(M.reference_json(plan.y, plan.dt, plan.duration), 0)
+        self._json["/reference"].base.log(self._constants.reference_json, 0)
         self._scene.publish_world(0.0, scenario.goal_at(0.0), scenario.obstacles_at(0.0))
         self._scene.publish_reference(0.0)
 
@@ -331,25 +320,9 @@ class EpisodeLogger:
         if self._closed:
             return
         t = step.t
-        ns = round(t * 1e9)
-        state = step.state
-        self._log_joints(ns, state.q, state.v, step.qacc, step.tau)
-
-        obs = step.observation
-        y, yd = obs.y.tolist(), obs.yd.tolist()  # (TCP position, z-axis) and their rates
-        gx, gy, gz = obs.goal[:3].tolist()
-        tcp = y[:3]
-        distance = math.dist(tcp, (gx, gy, gz))
-        self._log_numbers_of_step(t, y, yd, (gx, gy, gz), distance, step.command, ns)
-
-        internals = step.internals
-        plan = None
-        if "plan" in internals:
-            internals = dict(internals)
-            plan = internals.pop("plan")
-        self._log_method(t, internals, ns)
-
+        tcp, plan = self._topics.record(step, round(t * 1e9))
         scene = self._scene
+        obs = step.observation
         scene.publish_world(t, obs.goal, obs.obstacles)
         self._last_tcp = (tcp[0], tcp[1], tcp[2])
         if self._steps % self._path_every == 0:
@@ -362,112 +335,6 @@ class EpisodeLogger:
         self._t = t
         if self._failures.cause:  # stop the episode: the rest of the log could not be written
             raise WriteError(self.part_path, self._failures.cause)
-
-    def _log_joints(
-        self, ns: int, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, tau: np.ndarray
-    ) -> None:
-        """``/tf`` and ``/joint_states``: encoded in one compiled call (:mod:`amex.log.wire`)."""
-        encoding = self._encoding
-        if encoding is not None:
-            out = self._buffer
-            a, b = encode_step(
-                ns,
-                q,
-                v,
-                np.asarray(qacc, dtype=float),
-                np.asarray(tau, dtype=float),
-                encoding.blocks,
-                encoding.ends,
-                encoding.joint_index,
-                encoding.rotation,
-                out,
-            )
-            self._tf.base.log(out[:a].tobytes(), ns)
-            self._joint_states.base.log(out[a:b].tobytes(), ns)
-            return
-        stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)  # sim_stamp(t)
-        self._tf.base.log(self._links.message(q, stamp).encode(), ns)
-        qs, vs = q.tolist(), v.tolist()
-        qdd, taus = np.asarray(qacc).tolist(), np.asarray(tau).tolist()
-        joints = [
-            JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
-            for n, a, b, c, d in zip(self._joint_names, qs, vs, qdd, taus, strict=False)
-        ]
-        self._joint_states.base.log(JointStates(timestamp=stamp, joints=joints).encode(), ns)
-
-    def _log_numbers_of_step(
-        self,
-        t: float,
-        y: list[float],
-        yd: list[float],
-        goal: tuple[float, float, float],
-        distance: float,
-        command: Any,
-        ns: int,
-    ) -> None:
-        """``/tcp``, ``/goal`` and ``/command``, formatted by one %-template."""
-        values = [t, *y, *yd[:3], distance, t, *goal, distance, t]
-        present = []
-        for part in command:
-            present.append(part is not None)
-            if part is not None:
-                values += part.tolist()
-        key = tuple(present)
-        template = self._numbers_json.get(key)
-        if template is None:
-            command_json = self._command_template(command)
-            template = "\n".join((self._tcp_json, self._goal_json, command_json))
-            self._numbers_json[key] = template
-        if not math.isfinite(sum(values)):  # NaN/inf is not JSON: null (slow path, rare)
-            self._log_numbers("/tcp", self._tcp_json, (t, *y, *yd[:3], distance), ns)
-            self._log_numbers("/goal", self._goal_json, (t, *goal, distance), ns)
-            self._log_command(t, command, ns)
-            return
-        tcp, goal_text, command_text = (template % tuple(values)).encode().split(b"\n")
-        base_tcp, base_goal, base_command = self._bases
-        base_tcp.log(tcp, ns)
-        base_goal.log(goal_text, ns)
-        base_command.log(command_text, ns)
-
-    def _log_method(self, t: float, internals: Any, ns: int) -> None:
-        """``/method``: the numbers, flags, texts and small number arrays of ``internals()``.
-
-        The channel and its schema are made at the first step from the values then
-        (:class:`amex.log.method_topic.MethodTopic`).
-        """
-        method = self._method
-        if method.kinds is None:
-            schema = method.schema(t, internals)
-            channel = foxglove.Channel("/method", schema=schema, context=self._context)
-            self._json["/method"] = channel
-        self._json["/method"].base.log(method.encode(t, internals), ns)
-
-    def _command_template(self, command: Any) -> str:
-        """The %-template of ``/command`` for the parts ``command`` has (made at the first one)."""
-        present = tuple(part is not None for part in command)
-        template = self._command_json.get(present)
-        if template is None:
-            names = ("y_star", "yd_star", "q_star", "qd_star")
-            fields = [("t", 0)]
-            fields += [(k, len(p)) for k, p in zip(names, command, strict=False) if p is not None]
-            template = self._command_json[present] = M.json_template(fields)
-        return template
-
-    def _log_command(self, t: float, command: Any, ns: int) -> None:
-        """y*, y_dot* (and q*, q_dot*): whichever parts the command has."""
-        parts = [p.tolist() for p in command if p is not None]
-        template = self._command_template(command)
-        self._log_numbers("/command", template, (t, *(x for p in parts for x in p)), ns)
-
-    def _log_numbers(self, topic: str, template: str, values: tuple[float, ...], ns: int) -> None:
-        if math.isfinite(sum(values)):
-            data = (template % values).encode()
-        else:  # NaN/inf is not JSON: null instead (slow path, rare)
-            data = (
-                template.replace(M.NUM, "%s")
-                % tuple(repr(v) if math.isfinite(v) else "null" for v in values)
-            ).encode()
-        self._json[topic].base.log(data, ns)
 
     def finish(self, result: EpisodeResult) -> None:
         """Write the result: the last path update, ``/episode`` and the ``outcome`` record."""
@@ -482,14 +349,3 @@ class EpisodeLogger:
         self._json["/episode"].base.log(M.dumps({"t": t, "status": status, **row}), round(t * 1e9))
         self._write_metadata("outcome", {"status": status, "steps": self._steps, **row})
         self._outcome_written = True
-
-
-def _protobuf_channel(topic: str, message: Any, context: foxglove.Context) -> foxglove.Channel:
-    """A channel for pre-encoded ``message`` bytes: the typed channel's schema and encoding."""
-    schema = message.get_schema()
-    return foxglove.Channel(
-        topic,
-        schema=foxglove.Schema(name=schema.name, encoding=schema.encoding, data=schema.data),
-        message_encoding="protobuf",
-        context=context,
-    )
