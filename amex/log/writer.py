@@ -72,6 +72,7 @@ from amex.log import messages as M
 from amex.log.constants import log_constants
 from amex.log.files import WriteFailures, failure_cause, set_aside
 from amex.log.frames import WORLD_FRAME
+from amex.log.frames import LinkTransforms as LinkTransforms  # re-exported (tests, callers)
 from amex.log.scene import SceneChannels
 from amex.log.step_topics import StepTopics
 from amex.log.wire import protobuf_channel
