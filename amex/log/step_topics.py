@@ -12,7 +12,7 @@ as null on a slow path); ``/method`` by :class:`amex.log.method_topic.MethodTopi
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import foxglove
 import numpy as np
@@ -25,6 +25,50 @@ from amex.log.wire import encode_step
 
 if TYPE_CHECKING:
     from amex.sim.loop import StepRecord
+
+
+class Captured(NamedTuple):
+    """One outer step as :func:`capture` keeps it until the logger writes it (module notes)."""
+
+    t: float
+    q: np.ndarray
+    v: np.ndarray
+    qacc: np.ndarray
+    tau: np.ndarray
+    y: np.ndarray
+    yd: np.ndarray
+    goal: np.ndarray
+    obstacles: np.ndarray
+    command: tuple[np.ndarray | None, ...]
+    internals: dict[str, Any]
+
+
+def capture(step: StepRecord) -> Captured:
+    """What the log needs of ``step``, copied where the loop or the method may reuse a buffer.
+
+    The episode loop copies q and q_dot at outer steps and builds a new observation (its task
+    state and goal) each time; the accelerations and torques are the simulator's buffers, and
+    a method may reuse its command's or internals' arrays: those are copied.
+    """
+    state, obs = step.state, step.observation
+    command = tuple(None if p is None else p.copy() for p in step.command)
+    internals = {
+        k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in step.internals.items()
+    }
+    return Captured(
+        step.t,
+        state.q,
+        state.v,
+        np.array(step.qacc, dtype=float),
+        np.array(step.tau, dtype=float),
+        obs.y,
+        obs.yd,
+        obs.goal,
+        obs.obstacles,
+        command,
+        internals,
+    )
+
 
 _TCP_FIELDS = [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
 _GOAL_FIELDS = [("t", 0), ("position", 3), ("distance", 0)]
@@ -60,22 +104,19 @@ class StepTopics:
         self._method = MethodTopic()  # /method's schema, at the first step
         self.method_channel: foxglove.Channel | None = None
 
-    def record(self, step: StepRecord, ns: int) -> tuple[list[float], Any]:
+    def record(self, step: Captured, ns: int) -> tuple[list[float], Any]:
         """Log one outer step at ``ns`` [ns]; the TCP position [m] and ``internals()["plan"]``."""
         t = step.t
-        state = step.state
-        self._log_joints(ns, state.q, state.v, step.qacc, step.tau)
-        obs = step.observation
-        y, yd = obs.y.tolist(), obs.yd.tolist()  # (TCP position, z-axis) and their rates
-        gx, gy, gz = obs.goal[:3].tolist()
+        self._log_joints(ns, step.q, step.v, step.qacc, step.tau)
+        y, yd = step.y.tolist(), step.yd.tolist()  # (TCP position, z-axis) and their rates
+        gx, gy, gz = step.goal[:3].tolist()
         tcp = y[:3]
         distance = math.dist(tcp, (gx, gy, gz))
         self._log_numbers_of_step(t, y, yd, (gx, gy, gz), distance, step.command, ns)
         internals = step.internals
         plan = None
         if "plan" in internals:
-            internals = dict(internals)
-            plan = internals.pop("plan")
+            plan = internals.pop("plan")  # the captured copy: ours to change
         self._log_method(t, internals, ns)
         return tcp, plan
 
@@ -90,8 +131,8 @@ class StepTopics:
                 ns,
                 q,
                 v,
-                np.asarray(qacc, dtype=float),
-                np.asarray(tau, dtype=float),
+                qacc,
+                tau,
                 encoding.blocks,
                 encoding.ends,
                 encoding.joint_index,

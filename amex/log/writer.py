@@ -37,16 +37,22 @@ MCAP metadata records: ``episode`` (the caller's metadata: task, method, env, se
 ``scenario``, ``robot``, ``log`` (written first) and ``outcome`` (written last: the result, or
 why the log ended early). Values are JSON texts.
 
-Cost, measured on a Task-3 DMP episode: ~100-150 us per outer step (the floats' text formatting
-and the Foxglove message objects dominate), ~20 % of an episode's run time; ~110 kB per second
-of simulation.
+Cost (issue #29, ``python -m amex.app.bench_log``): the messages are encoded without the SDK's
+message objects (:mod:`amex.log.wire`, :mod:`amex.log.scene_wire`: the same bytes), the steps
+are kept (:func:`~amex.log.step_topics.capture`, a few copies) and written :data:`BATCH` at a
+time, so the writing code runs warm instead of once between every 10 inner steps; what the run
+shares (link transforms, ``/reference``) is computed once per run (:mod:`amex.log.constants`).
+What remains per outer step is mostly the numbers' text (``%.9g``; ``/method`` at full
+precision), the SDK's writing and its zstd compression: ~40-50 us on these machines, ~110 kB
+per second of simulation.
 
 Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
 finished log never has the suffix, and no existing file is ever overwritten: an existing
 ``<path>`` or ``<path>.part`` (a rerun, or a resumed run's interrupted episode) is renamed to
 ``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, zstd-compressed: after SIGKILL at
-most the last chunk (~0.5 s of simulation) is lost, and :func:`amex.log.reader.read_log` recovers
-the rest. The log is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job): a
+most the last chunk (~0.5 s of simulation) and the steps kept since the last batch (< 0.1 s)
+are lost, and :func:`amex.log.reader.read_log` recovers the rest. A write that fails stops the
+episode (:class:`~amex.core.errors.WriteError`) at the end of the batch it was in. The log is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job): a
 handler is installed while the log is open (main thread only), finishes the file, restores the
 previous handler and re-delivers the signal to it.
 """
@@ -74,7 +80,7 @@ from amex.log.files import WriteFailures, failure_cause, set_aside
 from amex.log.frames import WORLD_FRAME
 from amex.log.frames import LinkTransforms as LinkTransforms  # re-exported (tests, callers)
 from amex.log.scene import SceneChannels
-from amex.log.step_topics import StepTopics
+from amex.log.step_topics import Captured, StepTopics, capture
 from amex.log.wire import protobuf_channel
 
 if TYPE_CHECKING:
@@ -88,6 +94,7 @@ CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can 
 PART_SUFFIX = ".part"
 COMPRESSION = MCAPCompression.Zstd
 COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % more time
+BATCH = 10  # outer steps kept before they are written (0.1 s of simulation at 100 Hz)
 
 
 class EpisodeLogger:
@@ -173,6 +180,7 @@ class EpisodeLogger:
         step_channels = {"/tf": self._tf, "/joint_states": self._joint_states}
         step_channels.update((k, self._json[k]) for k in ("/tcp", "/goal", "/command"))
         self._topics = StepTopics(ctx, self._constants, step_channels)
+        self._pending: list[Captured] = []  # steps kept, not yet written (BATCH)
         self._previous_handler: Any = None
         self._install_sigterm()
         try:
@@ -211,9 +219,14 @@ class EpisodeLogger:
         """
         if self._closed:
             return
-        self._closed = True
         self._restore_sigterm()
         try:
+            try:
+                self._flush()  # the steps kept since the last batch
+            except WriteError:
+                pass  # reported below, from the same cause
+            finally:
+                self._closed = True
             if not self._outcome_written and not self._failures.cause:
                 info = {"status": "incomplete", "steps": self._steps, "t": self._t}
                 info.update(outcome or {})
@@ -317,23 +330,35 @@ class EpisodeLogger:
         self._scene.publish_reference(0.0)
 
     def record(self, step: StepRecord) -> None:
-        """Log one outer step (see the module docstring for what goes where)."""
+        """Log one outer step (see the module docstring for what goes where).
+
+        The step is kept (:func:`~amex.log.step_topics.capture`) and written with the next
+        :data:`BATCH` - 1 steps, or at :meth:`finish` or :meth:`close` (module notes).
+        """
         if self._closed:
             return
-        t = step.t
-        tcp, plan = self._topics.record(step, round(t * 1e9))
-        scene = self._scene
-        obs = step.observation
-        scene.publish_world(t, obs.goal, obs.obstacles)
-        self._last_tcp = (tcp[0], tcp[1], tcp[2])
-        if self._steps % self._path_every == 0:
-            scene.add_path_point(tcp[0], tcp[1], tcp[2])
-            scene.publish_path(t)
-            scene.publish_plan(t, plan)
-        if t >= scene.next_reference:
-            scene.publish_reference(t)
-        self._steps += 1
-        self._t = t
+        pending = self._pending
+        pending.append(capture(step))
+        if len(pending) >= BATCH:
+            self._flush()
+
+    def _flush(self) -> None:
+        """Write the kept steps, in order, every topic of a step before the next step's."""
+        pending, self._pending = self._pending, []
+        topics, scene, every = self._topics, self._scene, self._path_every
+        for step in pending:
+            t = step.t
+            tcp, plan = topics.record(step, round(t * 1e9))
+            scene.publish_world(t, step.goal, step.obstacles)
+            self._last_tcp = (tcp[0], tcp[1], tcp[2])
+            if self._steps % every == 0:
+                scene.add_path_point(tcp[0], tcp[1], tcp[2])
+                scene.publish_path(t)
+                scene.publish_plan(t, plan)
+            if t >= scene.next_reference:
+                scene.publish_reference(t)
+            self._steps += 1
+            self._t = t
         if self._failures.cause:  # stop the episode: the rest of the log could not be written
             raise WriteError(self.part_path, self._failures.cause)
 
@@ -341,6 +366,7 @@ class EpisodeLogger:
         """Write the result: the last path update, ``/episode`` and the ``outcome`` record."""
         if self._closed:
             return
+        self._flush()
         t = max(self._t, float(result.final_time))
         if self._last_tcp is not None and (self._steps - 1) % self._path_every:
             self._scene.add_path_point(*self._last_tcp)
