@@ -50,7 +50,7 @@ Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` w
 finished log never has the suffix, and no existing file is ever overwritten: an existing
 ``<path>`` or ``<path>.part`` (a rerun, or a resumed run's interrupted episode) is renamed to
 ``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, zstd-compressed: after SIGKILL at
-most the last chunk (~0.5 s of simulation) and the steps kept since the last batch (< 0.1 s)
+most the last chunk (~0.5 s of simulation) and the steps kept since the last batch (< 0.5 s)
 are lost, and :func:`amex.log.reader.read_log` recovers the rest. A write that fails stops the
 episode (:class:`~amex.core.errors.WriteError`) at the end of the batch it was in. The log is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job): a
 handler is installed while the log is open (main thread only), finishes the file, restores the
@@ -94,7 +94,7 @@ CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can 
 PART_SUFFIX = ".part"
 COMPRESSION = MCAPCompression.Zstd
 COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % more time
-BATCH = 10  # outer steps kept before they are written (0.1 s of simulation at 100 Hz)
+BATCH = 50  # outer steps kept before they are written (0.5 s of simulation at 100 Hz)
 
 
 class EpisodeLogger:
