@@ -52,9 +52,10 @@ finished log never has the suffix, and no existing file is ever overwritten: an 
 ``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, zstd-compressed: after SIGKILL at
 most the last chunk (~0.5 s of simulation) and the steps kept since the last batch (< 0.5 s)
 are lost, and :func:`amex.log.reader.read_log` recovers the rest. A write that fails stops the
-episode (:class:`~amex.core.errors.WriteError`) at the end of the batch it was in. The log is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job): a
-handler is installed while the log is open (main thread only), finishes the file, restores the
-previous handler and re-delivers the signal to it.
+episode (:class:`~amex.core.errors.WriteError`) at the end of the batch it was in. The log
+is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job), the kept steps
+written first: a handler is installed while the log is open (main thread only), finishes the
+file, restores the previous handler and re-delivers the signal to it.
 """
 
 from __future__ import annotations
