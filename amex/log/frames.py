@@ -101,6 +101,21 @@ class LinkTransforms:
             *((r[0], r[1]) for r in self._generic),
         ]
 
+    def constant_parts(self) -> list[tuple[str, str, Vec, Quat, int]] | None:
+        """Every transform as (parent, child, translation, quaternion, joint index or -1).
+
+        A transform with a joint index turns as ``P * Rz(q[index])`` (P: its translation and
+        quaternion), one with -1 is constant; in message order. None if some transform takes
+        the generic path (:meth:`message` then computes it by forward kinematics).
+        """
+        if self._generic:
+            return None
+        return [
+            (WORLD_FRAME, self.root, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0), -1),
+            *((p, c, tr, quat, i) for p, c, i, tr, _, quat in self._revolute),
+            *((p, c, tr, quat, -1) for p, c, tr, quat, _, _ in self._constant),
+        ]
+
     def compute(self, q: np.ndarray) -> list[tuple[str, str, Vec, Quat]]:
         """The transforms at ``q``: (parent, child, translation [m], quaternion (x, y, z, w))."""
         out: list[tuple[str, str, Vec, Quat]] = [

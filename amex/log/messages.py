@@ -138,13 +138,20 @@ def reference_schema(m: int) -> dict[str, Any]:
 
 
 def reference_json(y: np.ndarray, dt: float, duration: float) -> bytes:
-    """The ``/reference`` message of a plan ``y`` (N + 1, m) sampled every ``dt`` [s]."""
-    samples = []
-    for k, row in enumerate(np.asarray(y, dtype=float).tolist()):
-        position = ",".join(NUM % v for v in row[:3])
-        axis = ",".join(NUM % v for v in row[3:])
-        samples.append(f'{{"t":{NUM % (k * dt)},"position":[{position}],"axis":[{axis}]}}')
-    text = f'{{"dt":{float(dt)!r},"duration":{float(duration)!r},"samples":[{",".join(samples)}]}}'
+    """The ``/reference`` message of a plan ``y`` (N + 1, m) sampled every ``dt`` [s].
+
+    One %-format over all samples: ``{"t":k*dt,"position":[...],"axis":[...]}`` each.
+    """
+    rows = np.asarray(y, dtype=float)
+    n, m = rows.shape
+    times = [k * dt for k in range(n)]
+    values = np.column_stack([np.array(times, dtype=float), rows]).ravel().tolist()
+    sample = (
+        '{"t":' + NUM + ',"position":[' + ",".join([NUM] * min(m, 3)) + '],"axis":['
+        + ",".join([NUM] * max(m - 3, 0)) + "]}"
+    )  # fmt: skip
+    samples = ",".join([sample] * n) % tuple(values)
+    text = f'{{"dt":{float(dt)!r},"duration":{float(duration)!r},"samples":[{samples}]}}'
     return text.encode()
 
 
@@ -249,12 +256,18 @@ def dumps(obj: dict[str, Any]) -> bytes:
         return _ENCODER.encode(jsonable(obj)).encode()
 
 
+def point_rows(k: int, max_points: int) -> np.ndarray | None:
+    """The rows :func:`points` keeps of k: at most ``max_points``, evenly strided; None: all."""
+    if k <= max_points:
+        return None
+    return np.unique(np.linspace(0, k - 1, max_points).round().astype(int))
+
+
 def points(xyz: np.ndarray, max_points: int) -> list[Point3]:
     """At most ``max_points`` evenly strided points of ``xyz`` (k, 3), always with the last one."""
-    k = len(xyz)
-    if k > max_points:
-        idx = np.unique(np.linspace(0, k - 1, max_points).round().astype(int))
-        xyz = xyz[idx]
+    rows = point_rows(len(xyz), max_points)
+    if rows is not None:
+        xyz = xyz[rows]
     return [Point3(x=x, y=y, z=z) for x, y, z in np.asarray(xyz, dtype=float)[:, :3].tolist()]
 
 

@@ -11,6 +11,10 @@ Four ``foxglove.SceneUpdate`` topics of :class:`~amex.log.writer.EpisodeLogger`'
 Colours are the palette's (:mod:`amex.core.palette`, through :mod:`amex.log.messages`): the goal
 gold, the obstacles black, the reference red, the executed path in the method's colour and its
 plan lighter.
+
+The messages are encoded by :mod:`amex.log.scene_wire` (the SDK's bytes without its objects);
+:func:`amex.log.messages.line_update` and :func:`amex.log.messages.sphere` build the same
+messages as SDK objects (the tests' oracle).
 """
 
 from __future__ import annotations
@@ -19,11 +23,12 @@ from typing import Any
 
 import foxglove
 import numpy as np
-from foxglove.channels import SceneUpdateChannel
-from foxglove.messages import Point3, SceneEntity, SceneUpdate
+from foxglove.messages import SceneEntity, SceneUpdate
 
 from amex.log import messages as M
-from amex.log.frames import WORLD_FRAME, sim_stamp
+from amex.log import scene_wire as W
+from amex.log.frames import WORLD_FRAME
+from amex.log.wire import protobuf_channel
 
 SUCCESS_RADIUS = 0.03  # [m] drawn around the goal (the paper's success radius)
 
@@ -33,7 +38,7 @@ class SceneChannels:
 
     Args:
         context: the log's ``foxglove.Context`` (channels are created in it, in topic order).
-        reference: the reference plan's TCP points, already decimated.
+        reference: the reference plan's TCP points, already decimated, shape (k, 3) [m].
         obstacle_radii: the obstacles' radii [m], shape (k,).
         obstacles_move: whether the obstacles move (their positions then count as motion).
         method: the method's name (its colour).
@@ -43,23 +48,36 @@ class SceneChannels:
     def __init__(
         self,
         context: foxglove.Context,
-        reference: list[Point3],
+        reference: np.ndarray,
         obstacle_radii: np.ndarray,
         *,
         obstacles_move: bool,
         method: str,
         max_line_points: int,
     ) -> None:
-        self.world = SceneUpdateChannel("/scene/world", context=context)
-        self.path = SceneUpdateChannel("/scene/path", context=context)
-        self.plan = SceneUpdateChannel("/scene/plan", context=context)
-        self.reference = SceneUpdateChannel("/scene/reference", context=context)
-        self._reference = reference
+        self.world = _scene_channel("/scene/world", context)
+        self.path = _scene_channel("/scene/path", context)
+        self.plan = _scene_channel("/scene/plan", context)
+        self.reference = _scene_channel("/scene/reference", context)
+        self._reference_points = W.line_points(reference)  # constant: encoded once
+        self._reference_line = W.line_encoding("reference", M.REFERENCE_COLOR, 2.0)
+        self._path_line = W.line_encoding("tcp_path", M.path_color(method), 3.0)
+        self._plan_line = W.line_encoding("plan", M.plan_color(method), 3.0)
         self._radii = np.asarray(obstacle_radii, dtype=float)
         self._obstacles_move = obstacles_move
-        self._path_color, self._plan_color = M.path_color(method), M.plan_color(method)
         self._max_line_points = max_line_points
-        self._path_points: list[Point3] = []
+        self._plan_rows: dict[int, np.ndarray | None] = {}  # plan length -> the rows drawn
+        self._path_points = np.empty((256, 3))
+        self._path_count = 0
+        self._goal_entity = SceneEntity(frame_id=WORLD_FRAME, id="goal").encode()
+        self._obstacle_entity = SceneEntity(frame_id=WORLD_FRAME, id="obstacles").encode()
+        self._goal_spheres = (
+            W.sphere_encoding(2 * SUCCESS_RADIUS, M.GOAL_COLOR),
+            W.sphere_encoding(0.01, M.GOAL_DOT_COLOR),
+        )
+        self._obstacle_spheres = [
+            W.sphere_encoding(2 * r, M.OBSTACLE_COLOR) for r in self._radii.tolist()
+        ]
         self._world_key: list[float] | None = None
         self._world_time = 0.0
         self.next_reference = 0.0  # [s] when the reference line is due again
@@ -83,49 +101,49 @@ class SceneChannels:
             if moved < 1e-3:
                 return
         self._world_key, self._world_time = key, t
-        stamp = sim_stamp(t)
-        entities = [
-            SceneEntity(
-                timestamp=stamp,
-                frame_id=WORLD_FRAME,
-                id="goal",
-                spheres=[
-                    M.sphere((gx, gy, gz), 2 * SUCCESS_RADIUS, M.GOAL_COLOR),
-                    M.sphere((gx, gy, gz), 0.01, M.GOAL_DOT_COLOR),
-                ],
-            )
-        ]
+        ns = round(t * 1e9)
+        (center,) = W.positions(np.array([[gx, gy, gz]]))
+        big, dot = self._goal_spheres
+        update = W.spheres_entity(ns, self._goal_entity, [(big, center), (dot, center)])
         if len(self._radii):
-            spheres = [
-                M.sphere(c, 2 * float(r), M.OBSTACLE_COLOR)
-                for c, r in zip(np.asarray(obstacles).tolist(), self._radii.tolist(), strict=False)
-            ]
-            entities.append(
-                SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id="obstacles", spheres=spheres)
-            )
-        self.world.log(SceneUpdate(entities=entities), log_time=round(t * 1e9))
+            centers = np.asarray(obstacles, dtype=float).reshape(-1, 3)[: len(self._radii)]
+            spheres = list(zip(self._obstacle_spheres, W.positions(centers), strict=False))
+            update += W.spheres_entity(ns, self._obstacle_entity, spheres)
+        self.world.base.log(update, ns)
 
     def publish_reference(self, t: float) -> None:
         """The reference line, due again a second later."""
-        update = M.line_update(sim_stamp(t), "reference", self._reference, M.REFERENCE_COLOR, 2.0)
-        self.reference.log(update, log_time=round(t * 1e9))
+        ns = round(t * 1e9)
+        self.reference.base.log(W.line_update(self._reference_line, ns, self._reference_points), ns)
         self.next_reference = t + 1.0
 
     def add_path_point(self, x: float, y: float, z: float) -> None:
         """One more point of the executed TCP path (drawn at the next :meth:`publish_path`)."""
-        self._path_points.append(Point3(x=x, y=y, z=z))
+        if self._path_count == len(self._path_points):
+            self._path_points = np.concatenate(
+                [self._path_points, np.empty_like(self._path_points)]
+            )
+        self._path_points[self._path_count] = x, y, z
+        self._path_count += 1
 
     def publish_path(self, t: float) -> None:
         """The executed TCP path so far (nothing before its first point)."""
-        if self._path_points:
-            update = M.line_update(
-                sim_stamp(t), "tcp_path", self._path_points, self._path_color, 3.0
-            )
-            self.path.log(update, log_time=round(t * 1e9))
+        if self._path_count:
+            ns = round(t * 1e9)
+            points = W.line_points(self._path_points[: self._path_count])
+            self.path.base.log(W.line_update(self._path_line, ns, points), ns)
 
     def publish_plan(self, t: float, plan: Any) -> None:
         """The method's current plan if it is an ``(k, >=3)`` array (else nothing)."""
         if isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3:
-            points = M.points(plan, self._max_line_points)
-            update = M.line_update(sim_stamp(t), "plan", points, self._plan_color, 3.0)
-            self.plan.log(update, log_time=round(t * 1e9))
+            if len(plan) not in self._plan_rows:
+                self._plan_rows[len(plan)] = M.point_rows(len(plan), self._max_line_points)
+            rows = self._plan_rows[len(plan)]
+            ns = round(t * 1e9)
+            points = W.line_points(plan if rows is None else plan[rows])
+            self.plan.base.log(W.line_update(self._plan_line, ns, points), ns)
+
+
+def _scene_channel(topic: str, context: foxglove.Context) -> foxglove.Channel:
+    """A channel of pre-encoded ``foxglove.SceneUpdate`` messages (the typed channel's schema)."""
+    return protobuf_channel(topic, SceneUpdate, context)

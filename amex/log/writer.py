@@ -37,24 +37,30 @@ MCAP metadata records: ``episode`` (the caller's metadata: task, method, env, se
 ``scenario``, ``robot``, ``log`` (written first) and ``outcome`` (written last: the result, or
 why the log ended early). Values are JSON texts.
 
-Cost, measured on a Task-3 DMP episode: ~100-150 us per outer step (the floats' text formatting
-and the Foxglove message objects dominate), ~20 % of an episode's run time; ~110 kB per second
-of simulation.
+Cost (issue #29, ``python -m amex.app.bench_log``): the messages are encoded without the SDK's
+message objects (:mod:`amex.log.wire`, :mod:`amex.log.scene_wire`: the same bytes), the steps
+are kept (:func:`~amex.log.step_topics.capture`, a few copies) and written :data:`BATCH` at a
+time, so the writing code runs warm instead of once between every 10 inner steps; what the run
+shares (link transforms, ``/reference``) is computed once per run (:mod:`amex.log.constants`).
+What remains per outer step is mostly the numbers' text (``%.9g``; ``/method`` at full
+precision), the SDK's writing and its zstd compression: ~40-50 us on these machines, ~110 kB
+per second of simulation.
 
 Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
 finished log never has the suffix, and no existing file is ever overwritten: an existing
 ``<path>`` or ``<path>.part`` (a rerun, or a resumed run's interrupted episode) is renamed to
 ``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, zstd-compressed: after SIGKILL at
-most the last chunk (~0.5 s of simulation) is lost, and :func:`amex.log.reader.read_log` recovers
-the rest. The log is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job): a
-handler is installed while the log is open (main thread only), finishes the file, restores the
-previous handler and re-delivers the signal to it.
+most the last chunk (~0.5 s of simulation) and the steps kept since the last batch (< 0.5 s)
+are lost, and :func:`amex.log.reader.read_log` recovers the rest. A write that fails stops the
+episode (:class:`~amex.core.errors.WriteError`) at the end of the batch it was in. The log
+is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job), the kept steps
+written first: a handler is installed while the log is open (main thread only), finishes the
+file, restores the previous handler and re-delivers the signal to it.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 import signal
 import threading
@@ -64,16 +70,19 @@ from typing import TYPE_CHECKING, Any
 
 import foxglove
 import numpy as np
-from foxglove.channels import FrameTransformsChannel, JointStatesChannel
 from foxglove.mcap import MCAPCompression, MCAPWriteOptions
-from foxglove.messages import JointState, JointStates
+from foxglove.messages import FrameTransforms, JointStates
 
 from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
 from amex.log import messages as M
+from amex.log.constants import log_constants
 from amex.log.files import WriteFailures, failure_cause, set_aside
-from amex.log.frames import WORLD_FRAME, LinkTransforms, sim_stamp
+from amex.log.frames import WORLD_FRAME
+from amex.log.frames import LinkTransforms as LinkTransforms  # re-exported (tests, callers)
 from amex.log.scene import SceneChannels
+from amex.log.step_topics import Captured, StepTopics, capture
+from amex.log.wire import protobuf_channel
 
 if TYPE_CHECKING:
     from amex.plan.reference import ReferencePlan
@@ -86,6 +95,7 @@ CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can 
 PART_SUFFIX = ".part"
 COMPRESSION = MCAPCompression.Zstd
 COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % more time
+BATCH = 50  # outer steps kept before they are written (0.5 s of simulation at 100 Hz)
 
 
 class EpisodeLogger:
@@ -126,18 +136,13 @@ class EpisodeLogger:
             self.path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise LogError(f"cannot create the log directory {self.path.parent}: {e}") from e
-        self._links = LinkTransforms(robot)
-        self._joint_names = list(robot.joint_names)
+        self._constants = log_constants(robot, plan)
         self._path_every = max(1, int(path_every))
         self._steps = 0
         self._t = 0.0
         self._outcome_written = False
         self._closed = True
         self._last_tcp: tuple[float, float, float] | None = None
-        self._tcp_json = M.json_template(
-            [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
-        )
-        self._goal_json = M.json_template([("t", 0), ("position", 3), ("distance", 0)])
 
         self._failures = WriteFailures()
         self._failures.attach()
@@ -158,11 +163,12 @@ class EpisodeLogger:
             raise LogError(f"cannot create the log file {self.part_path}: {e}") from e
         self._closed = False
         ctx = self._context
-        self._tf = FrameTransformsChannel("/tf", context=ctx)
-        self._joint_states = JointStatesChannel("/joint_states", context=ctx)
+        # the typed channels' topics and schemas, written with bytes encoded here (amex.log.wire)
+        self._tf = protobuf_channel("/tf", FrameTransforms, ctx)
+        self._joint_states = protobuf_channel("/joint_states", JointStates, ctx)
         self._scene = SceneChannels(
             ctx,
-            M.points(np.asarray(plan.y)[:, :3], len(plan.y)),
+            np.asarray(plan.y)[:, :3],
             scenario.obstacle_radii,
             obstacles_move=bool(np.any(scenario.obstacle_velocity)),
             method=str(metadata.get("method", "")),
@@ -172,8 +178,10 @@ class EpisodeLogger:
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
             for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
         }
-        self._method_kinds: dict[str, str] | None = None  # /method's schema, at the first step
-        self._command_json: dict[tuple[bool, ...], str] = {}
+        step_channels = {"/tf": self._tf, "/joint_states": self._joint_states}
+        step_channels.update((k, self._json[k]) for k in ("/tcp", "/goal", "/command"))
+        self._topics = StepTopics(ctx, self._constants, step_channels)
+        self._pending: list[Captured] = []  # steps kept, not yet written (BATCH)
         self._previous_handler: Any = None
         self._install_sigterm()
         try:
@@ -212,9 +220,14 @@ class EpisodeLogger:
         """
         if self._closed:
             return
-        self._closed = True
         self._restore_sigterm()
         try:
+            try:
+                self._flush()  # the steps kept since the last batch
+            except WriteError:
+                pass  # reported below, from the same cause
+            finally:
+                self._closed = True
             if not self._outcome_written and not self._failures.cause:
                 info = {"status": "incomplete", "steps": self._steps, "t": self._t}
                 info.update(outcome or {})
@@ -236,11 +249,13 @@ class EpisodeLogger:
         os.replace(self.part_path, self.path)
 
     def _all_channels(self) -> list[Any]:
+        method = self._topics.method_channel
         return [
             self._tf,
             self._joint_states,
             *self._scene.channels(),
             *self._json.values(),
+            *([method] if method is not None else []),
         ]
 
     def _install_sigterm(self) -> None:
@@ -297,9 +312,9 @@ class EpisodeLogger:
                 "name": robot.name,
                 "urdf_path": robot.urdf_path,
                 "package_dirs": list(getattr(robot.description, "package_dirs", ()) or ()),
-                "joint_names": self._joint_names,
+                "joint_names": self._constants.joint_names,
                 "q0": robot.q0,
-                "links": [list(link) for link in self._links.links],
+                "links": [list(link) for link in self._constants.links.links],
             },
         )
         self._write_metadata(
@@ -311,122 +326,48 @@ class EpisodeLogger:
                 "world_frame": WORLD_FRAME,
             },
         )
-        self._json["/reference"].base.log(M.reference_json(plan.y, plan.dt, plan.duration), 0)
+        self._json["/reference"].base.log(self._constants.reference_json, 0)
         self._scene.publish_world(0.0, scenario.goal_at(0.0), scenario.obstacles_at(0.0))
         self._scene.publish_reference(0.0)
 
     def record(self, step: StepRecord) -> None:
-        """Log one outer step (see the module docstring for what goes where)."""
+        """Log one outer step (see the module docstring for what goes where).
+
+        The step is kept (:func:`~amex.log.step_topics.capture`) and written with the next
+        :data:`BATCH` - 1 steps, or at :meth:`finish` or :meth:`close` (module notes).
+        """
         if self._closed:
             return
-        t = step.t
-        ns = round(t * 1e9)
-        stamp = sim_stamp(t)
-        state = step.state
-        q, v = state.q, state.v
-        self._tf.log(self._links.message(q, stamp), log_time=ns)
+        pending = self._pending
+        pending.append(capture(step))
+        if len(pending) >= BATCH:
+            self._flush()
 
-        qs, vs = q.tolist(), v.tolist()
-        qdd, tau = np.asarray(step.qacc).tolist(), np.asarray(step.tau).tolist()
-        joints = [
-            JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
-            for n, a, b, c, d in zip(self._joint_names, qs, vs, qdd, tau, strict=False)
-        ]
-        self._joint_states.log(JointStates(timestamp=stamp, joints=joints), log_time=ns)
-
-        obs = step.observation
-        goal = obs.goal[:3]
-        y, yd = obs.y.tolist(), obs.yd.tolist()  # (TCP position, z-axis) and their rates
-        tcp = y[:3]
-        gx, gy, gz = goal.tolist()
-        distance = math.dist(tcp, (gx, gy, gz))
-        self._log_numbers("/tcp", self._tcp_json, (t, *y, *yd[:3], distance), ns)
-        self._log_numbers("/goal", self._goal_json, (t, gx, gy, gz, distance), ns)
-        self._log_command(t, step.command, ns)
-
-        internals = dict(step.internals)
-        plan = internals.pop("plan", None)
-        self._log_method(t, internals, ns)
-
-        scene = self._scene
-        scene.publish_world(t, goal, obs.obstacles)
-        self._last_tcp = (tcp[0], tcp[1], tcp[2])
-        if self._steps % self._path_every == 0:
-            scene.add_path_point(tcp[0], tcp[1], tcp[2])
-            scene.publish_path(t)
-            scene.publish_plan(t, plan)
-        if t >= scene.next_reference:
-            scene.publish_reference(t)
-        self._steps += 1
-        self._t = t
+    def _flush(self) -> None:
+        """Write the kept steps, in order, every topic of a step before the next step's."""
+        pending, self._pending = self._pending, []
+        topics, scene, every = self._topics, self._scene, self._path_every
+        for step in pending:
+            t = step.t
+            tcp, plan = topics.record(step, round(t * 1e9))
+            scene.publish_world(t, step.goal, step.obstacles)
+            self._last_tcp = (tcp[0], tcp[1], tcp[2])
+            if self._steps % every == 0:
+                scene.add_path_point(tcp[0], tcp[1], tcp[2])
+                scene.publish_path(t)
+                scene.publish_plan(t, plan)
+            if t >= scene.next_reference:
+                scene.publish_reference(t)
+            self._steps += 1
+            self._t = t
         if self._failures.cause:  # stop the episode: the rest of the log could not be written
             raise WriteError(self.part_path, self._failures.cause)
-
-    def _log_method(self, t: float, internals: dict[str, Any], ns: int) -> None:
-        """``/method``: the numbers, flags, texts and small number arrays of ``internals()``.
-
-        The channel and its schema are made at the first step from the values then; later a
-        key the schema lacks is left out, and a value of another kind is written as null.
-        """
-        if self._method_kinds is None:
-            method: dict[str, Any] = {"t": t}
-            for key, value in internals.items():
-                if isinstance(value, np.ndarray):
-                    if value.size > 64 or value.ndim != 1:
-                        continue  # large arrays do not belong in a per-step JSON message
-                    value = value.tolist()
-                method[key] = value
-            schema = M.object_schema("amex.MethodInternals", method)
-            self._method_kinds = {k: v["type"] for k, v in schema["properties"].items()}
-            channel = foxglove.Channel("/method", schema=schema, context=self._context)
-            self._json["/method"] = channel
-        kinds = self._method_kinds
-        message: dict[str, Any] = {"t": t} if "t" in kinds else {}
-        for key, value in internals.items():
-            kind = kinds.get(key)
-            if kind is None or key == "t":
-                continue
-            if isinstance(value, np.ndarray):
-                if value.size > 64 or value.ndim != 1:
-                    continue  # as at the first step
-                numbers = value.dtype.kind in "fiu"  # tolist() gives Python ints and floats
-                value = value.tolist()
-                fits = kind == "array" if numbers else _kind_of(value) == kind
-            else:
-                known = _KINDS.get(type(value))
-                fits = known == kind if known is not None else _kind_of(value) == kind
-            message[key] = value if fits else None
-        self._json["/method"].base.log(M.dumps(message), ns)
-
-    def _log_command(self, t: float, command: Any, ns: int) -> None:
-        """y*, y_dot* (and q*, q_dot*): whichever parts the command has."""
-        present = tuple(part is not None for part in command)
-        template = self._command_json.get(present)
-        parts = [p.tolist() for p in command if p is not None]
-        if template is None:
-            keys = [
-                k
-                for k, p in zip(("y_star", "yd_star", "q_star", "qd_star"), present, strict=False)
-                if p
-            ]
-            fields = [("t", 0), *((k, len(v)) for k, v in zip(keys, parts, strict=True))]
-            template = self._command_json[present] = M.json_template(fields)
-        self._log_numbers("/command", template, (t, *(x for p in parts for x in p)), ns)
-
-    def _log_numbers(self, topic: str, template: str, values: tuple[float, ...], ns: int) -> None:
-        if math.isfinite(sum(values)):
-            data = (template % values).encode()
-        else:  # NaN/inf is not JSON: null instead (slow path, rare)
-            data = (
-                template.replace(M.NUM, "%s")
-                % tuple(repr(v) if math.isfinite(v) else "null" for v in values)
-            ).encode()
-        self._json[topic].base.log(data, ns)
 
     def finish(self, result: EpisodeResult) -> None:
         """Write the result: the last path update, ``/episode`` and the ``outcome`` record."""
         if self._closed:
             return
+        self._flush()
         t = max(self._t, float(result.final_time))
         if self._last_tcp is not None and (self._steps - 1) % self._path_every:
             self._scene.add_path_point(*self._last_tcp)
@@ -436,21 +377,3 @@ class EpisodeLogger:
         self._json["/episode"].base.log(M.dumps({"t": t, "status": status, **row}), round(t * 1e9))
         self._write_metadata("outcome", {"status": status, "steps": self._steps, **row})
         self._outcome_written = True
-
-
-#: The schema kind of the common value types of ``internals()`` (what M.value_schema gives).
-_KINDS: dict[type, str] = {
-    bool: "boolean",
-    int: "number",
-    float: "number",
-    np.float64: "number",
-    np.int64: "number",
-    str: "string",
-}
-
-
-def _kind_of(value: Any) -> str | None:
-    """The schema kind (``number``, ``array``, ...) of one value, None if it has none."""
-    schema = M.value_schema(value)
-    return None if schema is None else schema["type"]
-

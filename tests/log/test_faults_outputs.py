@@ -67,8 +67,15 @@ def test_a_full_disk_while_logging_stops_the_run_in_one_line_and_keeps_the_rows(
     mount, _ = small_disk  # 256 KiB: the first log fills it
     run_dir = mount / "run"
     done = subprocess.run(
-        [AMEX_RUN, "task=3", "method=dmp", "episodes=3", "max_time=3", "log=full",
-         f"hydra.run.dir={run_dir}"],  # fmt: skip
+        [
+            AMEX_RUN,
+            "task=3",
+            "method=dmp",
+            "episodes=3",
+            "max_time=3",
+            "log=full",
+            f"hydra.run.dir={run_dir}",
+        ],  # fmt: skip
         capture_output=True,
         text=True,
         timeout=300,

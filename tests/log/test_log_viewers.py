@@ -92,9 +92,7 @@ def _undeclared(value, schema, where):
 
 
 @pytest.mark.parametrize("method", sorted(BUILTIN_METHODS))
-def test_every_json_channel_follows_the_viewers_schema_rule_and_declares_every_field(
-    logs, method
-):
+def test_every_json_channel_follows_the_viewers_schema_rule_and_declares_every_field(logs, method):
     data = read_log(logs[method])
     schemas = dict(_json_schemas(logs[method]))
     assert {"/tcp", "/goal", "/command", "/method", "/reference", "/episode"} <= set(schemas)

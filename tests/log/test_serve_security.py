@@ -165,18 +165,14 @@ def test_file_url_mesh_outside_the_package_is_not_served(episode, tmp_path, home
         assert_serves_only_the_package_mesh(server, "passwd", "id_rsa")
 
 
-def test_relative_mesh_climbing_out_of_the_package_is_not_served(
-    episode, tmp_path, home, package
-):
+def test_relative_mesh_climbing_out_of_the_package_is_not_served(episode, tmp_path, home, package):
     up = "../" * 40
     urdf = write_urdf(package, up + "etc/passwd", "../../../home/.ssh/id_rsa")
     with serve(episode, tmp_path, urdf) as server:
         assert_serves_only_the_package_mesh(server, "passwd", "id_rsa")
 
 
-def test_package_url_climbing_out_of_its_package_is_not_served(
-    episode, tmp_path, home, package
-):
+def test_package_url_climbing_out_of_its_package_is_not_served(episode, tmp_path, home, package):
     up = "../" * 40
     urdf = write_urdf(
         package,
@@ -189,21 +185,15 @@ def test_package_url_climbing_out_of_its_package_is_not_served(
         assert len(server.urdf.refused) == 3
 
 
-def test_mesh_symlink_leading_out_of_the_package_is_not_served(
-    episode, tmp_path, home, package
-):
+def test_mesh_symlink_leading_out_of_the_package_is_not_served(episode, tmp_path, home, package):
     (package / "meshes" / "evil.stl").symlink_to(home / ".ssh" / "id_rsa")
     (package / "meshes" / "passwd.dae").symlink_to("/etc/passwd")
-    urdf = write_urdf(
-        package, "package://arm_description/meshes/evil.stl", "../meshes/passwd.dae"
-    )
+    urdf = write_urdf(package, "package://arm_description/meshes/evil.stl", "../meshes/passwd.dae")
     with serve(episode, tmp_path, urdf) as server:
         assert_serves_only_the_package_mesh(server, "evil.stl", "passwd.dae", "id_rsa", "passwd")
 
 
-def test_file_of_another_type_inside_the_package_is_not_served(
-    episode, tmp_path, home, package
-):
+def test_file_of_another_type_inside_the_package_is_not_served(episode, tmp_path, home, package):
     (package / "id_rsa").write_bytes(SECRET)
     urdf = write_urdf(package, "package://arm_description/id_rsa", "../package.xml")
     with serve(episode, tmp_path, urdf) as server:
@@ -398,16 +388,25 @@ def test_non_loopback_host_needs_expose_on_network(episode, tmp_path):
     with pytest.raises(LogError, match="expose_on_network"):
         LogServer(read_log(episode), host="0.0.0.0", port=0)
     done = subprocess.run(  # with the flag it tries: 192.0.2.1 (TEST-NET) is not this machine
-        [AMEX_LOG, "view", str(episode), "--port", "0", "--host", "192.0.2.1",
-         "--expose-on-network"],  # fmt: skip
+        [
+            AMEX_LOG,
+            "view",
+            str(episode),
+            "--port",
+            "0",
+            "--host",
+            "192.0.2.1",
+            "--expose-on-network",
+        ],  # fmt: skip
         capture_output=True,
         text=True,
         timeout=30,
     )
     assert done.returncode == 2 and "cannot listen on 192.0.2.1" in done.stderr
-    assert "--expose-on-network" in subprocess.run(
-        [AMEX_LOG, "view", "--help"], capture_output=True, text=True
-    ).stdout
+    assert (
+        "--expose-on-network"
+        in subprocess.run([AMEX_LOG, "view", "--help"], capture_output=True, text=True).stdout
+    )
 
 
 @pytest.mark.slow

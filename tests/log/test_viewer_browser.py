@@ -43,8 +43,15 @@ def test_log_opens_in_foxglove_studio_with_every_topic_and_no_problems(tmp_path,
     with LogServer(data, port=0) as server:
         assert server.urls.studio is not None
         proc = subprocess.run(
-            ["node", str(CHECK), server.urls.studio, "--topics", ",".join(topics),
-             "--screenshot", str(screenshot)],  # fmt: skip
+            [
+                "node",
+                str(CHECK),
+                server.urls.studio,
+                "--topics",
+                ",".join(topics),
+                "--screenshot",
+                str(screenshot),
+            ],  # fmt: skip
             capture_output=True,
             text=True,
             timeout=240,

@@ -1,0 +1,137 @@
+"""What ``log=full`` costs an episode: the same episodes with and without the MCAP log (issue #29).
+
+:func:`log_overhead` runs environments of a task with a method exactly as a run builds them
+(:func:`amex.experiment.runner.setup`, then :func:`~amex.experiment.runner.run_setup`), each one
+twice in a row, without and with a log file (a temporary directory), alternating so that both see
+the same load of the machine. Each episode is timed whole, set-up of the method and the logger
+and the log's finish included, in thread CPU time (``time.thread_time_ns``) and wall time. The
+first environment is run once before, unlogged and logged, so that caches (reference plan, Numba,
+the URDF's joints) are warm. The log's cost includes the method's ``internals()``, which the
+episode loop calls only for a recorder.
+
+Nothing here asserts a time. ``python -m amex.app.bench_log --tasks 1 2 3 4 --methods amex dmp cr``
+prints, per task and method, the median and p95 of the per-episode overhead ``logged / plain - 1``.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from collections.abc import Sequence  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import NamedTuple  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from amex.app.argparsing import OneLineParser  # noqa: E402
+
+
+class LogOverhead(NamedTuple):
+    """Per-episode times of the same environments, plain and logged [s] (shape (envs,) each)."""
+
+    plain_cpu: np.ndarray
+    logged_cpu: np.ndarray
+    plain_wall: np.ndarray
+    logged_wall: np.ndarray
+
+    def overhead(self, clock: str = "thread") -> np.ndarray:
+        """``logged / plain - 1`` per episode, in ``clock`` (``thread`` or ``wall``) [-]."""
+        if clock not in ("thread", "wall"):
+            raise ValueError(f"invalid clock={clock!r}; valid: thread, wall")
+        if clock == "thread":
+            return self.logged_cpu / self.plain_cpu - 1.0
+        return self.logged_wall / self.plain_wall - 1.0
+
+
+def _timed(run: object) -> tuple[float, float]:
+    cpu, wall = time.thread_time_ns(), time.perf_counter_ns()
+    run()  # type: ignore[operator]
+    return (time.thread_time_ns() - cpu) * 1e-9, (time.perf_counter_ns() - wall) * 1e-9
+
+
+def log_overhead(
+    task: int = 3,
+    method: str = "amex",
+    envs: Sequence[int] = range(6),
+    overrides: Sequence[str] = (),
+    *,
+    verbose: bool = True,
+) -> LogOverhead:
+    """Thread CPU and wall time of ``envs``, each run plain and then logged (module notes).
+
+    Args:
+        task: the task, 0-4.
+        method: the method's registry key.
+        envs: the environments (each one is run twice).
+        overrides: further Hydra overrides (e.g. ``max_time=1``).
+        verbose: print one line per environment and the median overhead.
+    """
+    from amex.app.compose import load_config
+    from amex.experiment.runner import prepare, run_setup, setup
+
+    config = load_config([f"task={task}", f"method={method}", *overrides])
+    run = setup(config, prepare(config))
+    rows: list[tuple[float, float, float, float]] = []
+    with tempfile.TemporaryDirectory(prefix="amex-bench-log-") as tmp:
+        first = next(iter(envs), 0)
+        run_setup(run, first)  # warm-up, not counted
+        run_setup(run, first, Path(tmp) / "warm.mcap")
+        for env in envs:
+            path = Path(tmp) / f"episode_{env:03d}.mcap"
+            plain = _timed(lambda env=env: run_setup(run, env))
+            logged = _timed(lambda env=env, path=path: run_setup(run, env, path))
+            path.unlink()
+            rows.append((plain[0], logged[0], plain[1], logged[1]))
+            if verbose:
+                print(
+                    f"  env {env}: thread CPU plain {plain[0]:.3f} s, logged {logged[0]:.3f} s "
+                    f"(+{(logged[0] / plain[0] - 1) * 100:.0f} %); wall plain {plain[1]:.3f} s, "
+                    f"logged {logged[1]:.3f} s"
+                )
+    times = np.array(rows).reshape(-1, 4)
+    result = LogOverhead(times[:, 0], times[:, 1], times[:, 2], times[:, 3])
+    if verbose:
+        print(summary(task, method, result))
+    return result
+
+
+def summary(task: int, method: str, result: LogOverhead) -> str:
+    """One line: the median and p95 overhead in thread CPU and wall time, and the plain median."""
+    cpu, wall = result.overhead("thread") * 100, result.overhead("wall") * 100
+    return (
+        f"Task {task}, {method} ({len(cpu)} env): log=full overhead thread CPU median "
+        f"+{np.median(cpu):.1f} % (p95 +{np.percentile(cpu, 95):.1f} %), wall median "
+        f"+{np.median(wall):.1f} % (p95 +{np.percentile(wall, 95):.1f} %); plain episode "
+        f"{np.median(result.plain_cpu) * 1e3:.0f} ms thread CPU"
+    )
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the overhead of ``log=full`` for the given tasks and methods."""
+    parser = OneLineParser(prog="amex-bench-log", description=__doc__.splitlines()[0])
+    parser.add_argument("--tasks", type=int, nargs="*", choices=range(5), default=[3])
+    parser.add_argument("--methods", nargs="*", default=["amex"])
+    parser.add_argument("--episodes", type=int, default=6, help="environments per task")
+    parser.add_argument("--quiet", action="store_true", help="only the summary lines")
+    parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. max_time=1")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error(f"--episodes {args.episodes}: valid: an integer >= 1")
+    lines = []
+    for method in args.methods:
+        for task in args.tasks:
+            result = log_overhead(
+                task, method, range(args.episodes), args.overrides, verbose=not args.quiet
+            )
+            lines.append(summary(task, method, result))
+    if args.quiet:
+        print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,129 @@
+"""The logs' own protobuf encoders against the SDK's objects (the oracle): the same bytes."""
+
+import numpy as np
+import pytest
+from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
+
+from amex.log import messages as M
+from amex.log import scene_wire as W
+from amex.log.frames import LinkTransforms, sim_stamp
+from amex.log.wire import encode_step, step_encoding
+
+
+def _times(rng):
+    return [0.0, 1e-9, 0.01, 1.0, 3.62, 12345.678, *rng.uniform(0, 60, 20).tolist()]
+
+
+def test_step_encoding_gives_the_sdks_bytes_of_tf_and_joint_states(robot):
+    rng = np.random.default_rng(0)
+    links = LinkTransforms(robot)
+    names = list(robot.joint_names)
+    encoding = step_encoding(links.constant_parts(), names)
+    out = np.empty(encoding.size, dtype=np.uint8)
+    times = _times(rng)
+    for trial in range(400):
+        q, v, qacc, tau = rng.uniform(-3.2, 3.2, (4, robot.nv))
+        if trial % 3 == 0:  # exact zeros: rotation components and proto3 defaults
+            q[rng.random(robot.nv) < 0.5] = 0.0
+        if trial % 5 == 0:
+            q[rng.random(robot.nv) < 0.5] = -0.0
+            tau[:] = 0.0
+        if trial % 7 == 0:
+            v[0], qacc[1] = np.nan, np.inf
+        t = times[trial % len(times)]
+        stamp, ns = sim_stamp(t), round(t * 1e9)
+        tf_sdk = links.message(q, stamp).encode()
+        joints = [
+            JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
+            for n, a, b, c, d in zip(
+                names, q.tolist(), v.tolist(), qacc.tolist(), tau.tolist(), strict=True
+            )
+        ]
+        js_sdk = JointStates(timestamp=stamp, joints=joints).encode()
+        a, b = encode_step(ns, q, v, qacc, tau, *encoding[:4], out)
+        assert out[:a].tobytes() == tf_sdk
+        assert out[a:b].tobytes() == js_sdk
+
+
+def test_the_start_pose_has_zero_rotation_components_left_out_as_the_sdk_does(robot):
+    links = LinkTransforms(robot)
+    encoding = step_encoding(links.constant_parts(), list(robot.joint_names))
+    q = np.zeros(robot.nv)
+    out = np.empty(encoding.size, dtype=np.uint8)
+    a, _ = encode_step(0, q, q, q, q, *encoding[:4], out)
+    assert out[:a].tobytes() == links.message(q, sim_stamp(0.0)).encode()
+    nonzero = encode_step(0, q + 0.3, q, q, q, *encoding[:4], out)[0]
+    assert nonzero > a  # the zeros were really left out
+
+
+@pytest.mark.parametrize("entity,thickness", [("plan", 3.0), ("reference", 2.0)])
+def test_line_updates_equal_the_sdks(entity, thickness):
+    rng = np.random.default_rng(1)
+    encoding = W.line_encoding(entity, M.plan_color("amex"), thickness)
+    for k, t in zip((1, 2, 7, 100, 401), _times(rng), strict=False):
+        xyz = rng.normal(size=(k, 3))
+        xyz[rng.random((k, 3)) < 0.2] = 0.0
+        if k > 1:
+            xyz[1] = -0.0
+        ns = round(t * 1e9)
+        sdk = M.line_update(sim_stamp(t), entity, M.points(xyz, k), M.plan_color("amex"), thickness)
+        assert W.line_update(encoding, ns, W.line_points(xyz)) == sdk.encode()
+
+
+def test_sphere_updates_equal_the_sdks():
+    rng = np.random.default_rng(2)
+    goal, dot = W.sphere_encoding(0.06, M.GOAL_COLOR), W.sphere_encoding(0.01, M.GOAL_DOT_COLOR)
+    radii = [0.02, 0.05]
+    obstacle = [W.sphere_encoding(2 * r, M.OBSTACLE_COLOR) for r in radii]
+    goal_entity = SceneEntity(frame_id="world", id="goal").encode()
+    obstacle_entity = SceneEntity(frame_id="world", id="obstacles").encode()
+    for t in _times(rng):
+        g = rng.normal(size=3)
+        g[rng.random(3) < 0.3] = 0.0
+        obstacles = rng.normal(size=(2, 3))
+        obstacles[0, 1] = 0.0
+        stamp, ns = sim_stamp(t), round(t * 1e9)
+        sdk = SceneUpdate(
+            entities=[
+                SceneEntity(
+                    timestamp=stamp,
+                    frame_id="world",
+                    id="goal",
+                    spheres=[M.sphere(g, 0.06, M.GOAL_COLOR), M.sphere(g, 0.01, M.GOAL_DOT_COLOR)],
+                ),
+                SceneEntity(
+                    timestamp=stamp,
+                    frame_id="world",
+                    id="obstacles",
+                    spheres=[
+                        M.sphere(c, 2 * r, M.OBSTACLE_COLOR)
+                        for c, r in zip(obstacles.tolist(), radii, strict=True)
+                    ],
+                ),
+            ]
+        ).encode()
+        (center,) = W.positions(g[None])
+        ours = W.spheres_entity(ns, goal_entity, [(goal, center), (dot, center)])
+        ours += W.spheres_entity(
+            ns, obstacle_entity, list(zip(obstacle, W.positions(obstacles), strict=True))
+        )
+        assert ours == sdk
+
+
+def test_varints_and_timestamps_match_the_sdk():
+    for value in (0, 1, 127, 128, 300, 2**31, 2**40 + 5):
+        encoded = W.varint(value)
+        decoded = sum((b & 0x7F) << (7 * i) for i, b in enumerate(encoded))
+        assert decoded == value and all(b & 0x80 for b in encoded[:-1])
+    for t in (0.0, 1.0, 0.5, 1e-9, 7.000000001):
+        ns = round(t * 1e9)
+        empty = SceneUpdate(entities=[SceneEntity(timestamp=sim_stamp(t))]).encode()
+        assert W.timestamp_field(ns) == empty[2:]  # after the entities tag and length
+
+
+def test_points_of_a_line_keep_every_row_when_there_are_few():
+    xyz = np.arange(12.0).reshape(4, 3)
+    assert M.point_rows(4, 100) is None
+    expected = [Point3(x=x, y=y, z=z).encode() for x, y, z in xyz.tolist()]
+    assert [p.encode() for p in M.points(xyz, 100)] == expected
+    assert M.point_rows(401, 100).tolist()[-1] == 400
