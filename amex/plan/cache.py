@@ -267,12 +267,12 @@ def read_cached(
         return CacheRead(None, "non-finite values")
     if not np.allclose(q[0], robot.q0, rtol=0.0, atol=1e-9):
         return CacheRead(None, "another start configuration")
+    plan = ReferencePlan(q=q, y=y, dt=config.dt, metric=joint_metric(config.metric, robot.nv))
+    if checked and checked == _checked_digest(key, q, y, dt):
+        return CacheRead(plan, "")  # written by reference_plan, y from q, after its end check
     image = np.array([robot.task_position(qk) for qk in q])
     if not np.allclose(y, image, rtol=0.0, atol=1e-9):
         return CacheRead(None, "its task-space image is not the kinematics of its joints")
-    plan = ReferencePlan(q=q, y=y, dt=config.dt, metric=joint_metric(config.metric, robot.nv))
-    if checked and checked == _checked_digest(key, q, y, dt):
-        return CacheRead(plan, "")  # written by reference_plan after its own end check
     problem = _end_problem(robot, config, plan, goal_pos, goal_axis)
     return CacheRead(None, problem) if problem else CacheRead(plan, "", checked_now=True)
 
@@ -281,9 +281,9 @@ def _checked_digest(key: str, q: np.ndarray, y: np.ndarray, dt: float) -> str:
     """What a file that passed the end check carries (``checked``): a digest of its contents.
 
     :func:`reference_plan` stores it beside a plan it solved and checked, so a reader skips
-    the end check (a Gauss-Newton linearization of the whole plan, ~0.1-0.2 s of every run's
-    start-up) for exactly those contents; a file without it, or whose plan, key or sample
-    period changed since, is checked again.
+    the image and end checks (a forward kinematics per knot and a Gauss-Newton linearization of
+    the whole plan, ~0.1-0.2 s of every run's start-up) for exactly those contents; a file
+    without it, or whose plan, key or sample period changed since, is checked again.
     """
     digest = hashlib.sha256(key.encode())
     for part in (np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(y, dtype=float)):
