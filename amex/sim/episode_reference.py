@@ -18,8 +18,7 @@ from amex.control import kernels
 from amex.control.osc import Command
 from amex.control.state import RobotState
 from amex.core.errors import AmexError, SimulationError, WriteError
-from amex.sim.episode import Probe
-from amex.sim.episode_setup import Episode, check_simulation, method_step, observe
+from amex.sim.episode_setup import Episode, Probe, check_simulation, method_step, observe
 from amex.sim.loop import Recorder, StepRecord
 from amex.sim.metrics import EpisodeResult
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -32,6 +33,14 @@ from amex.sim.metrics import (
 from amex.sim.perception import GoalSensor, PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
 from amex.sim.simulation import MismatchConfig, Simulation
+
+
+class Probe(Protocol):
+    """Sees the simulator at the start of every inner step (benchmarks; never in a run)."""
+
+    def __call__(self, k: int, data: mujoco.MjData) -> None:
+        """Called before inner step ``k`` reads the state from ``data``."""
+
 
 
 class Episode:
