@@ -215,8 +215,10 @@ def inner_step(
         raise ValueError(f"invalid clock={clock!r}; valid: thread, wall")
     steps = measure(task, method, envs, overrides)
     keep = ~steps.outer
-    step, floor = (steps.step_cpu, steps.floor_cpu) if clock == "thread" else (
-        steps.step_wall, steps.floor_wall
+    step, floor = (
+        (steps.step_cpu, steps.floor_cpu)
+        if clock == "thread"
+        else (steps.step_wall, steps.floor_wall)
     )
     return StepTimes(step[keep], floor[keep], steps.in_margin[keep])
 

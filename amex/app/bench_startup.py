@@ -54,8 +54,12 @@ def _run_command(run_dir: Path) -> list[str]:
 def startup_times(repeats: int = 5) -> StartupTimes:
     """Start-up CPU of ``amex-run``, warm and with a cold Numba cache, and its floor.
 
-    The first warm run is discarded (it fills the reference plan's and Numba's caches).
+    The first warm run is discarded (it fills the reference plan's and Numba's caches); amex's
+    bytecode is written first (:func:`amex.app.warm.warm_bytecode`, as ``make install`` does).
     """
+    from amex.app.warm import warm_bytecode
+
+    warm_bytecode()
     env = dict(os.environ)
     warm: list[float] = []
     cold: list[float] = []

@@ -13,7 +13,7 @@ import dataclasses
 import os
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from amex.app.compose import (
     composed,
@@ -65,10 +65,24 @@ def command_line_jobs(overrides: list[str], multirun: bool) -> tuple[list[list[s
         raise UsageError(f"invalid sweep: {explain(e, overrides)}") from e
 
 
-def validate_command_line(argv: list[str]) -> list[Path]:
+class Checked(NamedTuple):
+    """What :func:`validate_command_line` checked.
+
+    Attributes:
+        dirs: the directories of the jobs, in launch order.
+        cfg: a single run's composition (Hydra's part included) when it was composed through the
+            run's own ``Hydra`` (``hydra``), which the run then uses; else None.
+    """
+
+    dirs: list[Path]
+    cfg: Any = None
+
+
+def validate_command_line(argv: list[str], hydra: Any = None) -> Checked:
     """Compose and validate every run the command line describes, or raise :class:`UsageError`.
 
-    Returns the directories of the jobs, in launch order.
+    ``hydra``: a single run's ``Hydra`` (:func:`amex.app.launch.main_hydra`): its one
+    composition is checked and returned, for the run to use.
 
     The jobs of one cell that differ only in ``shard`` share one check of their configuration;
     every job's directory must be its own (a subdir without ``${amex.shard:...}`` is refused).
@@ -82,12 +96,18 @@ def validate_command_line(argv: list[str]) -> list[Path]:
     jobs, hydra_overrides = command_line_jobs(overrides, multirun)
     checked: dict[tuple[str, ...], Any] = {}
     owners: dict[Path, list[str]] = {}
+    run_cfg = None
     for job in jobs:
         cell = tuple(o for o in job if o.split("=", 1)[0].lstrip("+") != "shard")
         try:
             if cell not in checked:
-                config, job_dir = compose_job(
-                    job, hydra_overrides, multirun, not checked, check_config=preflight
+                config, job_dir, run_cfg = compose_job(
+                    job,
+                    hydra_overrides,
+                    multirun,
+                    not checked,
+                    check_config=preflight,
+                    hydra=None if multirun else hydra,
                 )
                 checked[cell] = (config, job_dir)
             else:  # another shard of a checked cell: its range and its directory
@@ -111,7 +131,7 @@ def validate_command_line(argv: list[str]) -> list[Path]:
         owners[job_dir] = job
         check_own_files(job_dir)
         _check_resumable(job_dir, config)
-    return list(owners)
+    return Checked(list(owners), run_cfg if hydra is not None else None)
 
 
 def launch_lock(job_dirs: list[Path], multirun: bool) -> RunLock | None:
@@ -265,18 +285,20 @@ def compose_job(
     multirun: bool,
     check_dir: bool = True,
     check_config: Callable[[Any], None] | None = None,
-) -> tuple[Any, Path]:
-    """One composition of a job: its validated ``RunConfig`` and its checked directory.
+    hydra: Any = None,
+) -> tuple[Any, Path, Any]:
+    """One composition of a job: its validated ``RunConfig``, its checked directory and itself.
 
     The run's configuration and Hydra's part (launcher, directories) come from the same
     composition, so a command's check composes each cell once (:func:`check_launch`).
     ``check_config`` (e.g. :func:`amex.experiment.runner.preflight`) checks the configuration
-    before the directories are.
+    before the directories are. ``hydra``: compose through a single run's ``Hydra``
+    (:func:`amex.app.compose.composed`).
     """
     from omegaconf import OmegaConf
 
     refuse_schema_methods(overrides)
-    with composed(overrides, hydra_overrides) as cfg:
+    with composed(overrides, hydra_overrides, hydra) as cfg:
         hydra_cfg: Any = OmegaConf.to_container(cfg.hydra, resolve=False)
         key = "hydra.sweep.dir" if multirun else "hydra.run.dir"
         chosen = str(OmegaConf.select(cfg, key) or "")
@@ -290,12 +312,12 @@ def compose_job(
     if not chosen.strip():
         raise LaunchError(f"invalid {key}=''; valid: a directory path (runs/mine, /data/run1, ...)")
     if not check_dir:
-        return config, job
+        return config, job, cfg
     launcher = hydra_cfg.get("launcher") or {}
     if multirun and str(launcher.get("_target_", "")).endswith("JoblibLauncher"):
         _check_joblib(launcher)
     check_output_dir(key, directory)
-    return config, job
+    return config, job, cfg
 
 
 def sweep_settings(

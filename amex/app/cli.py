@@ -27,8 +27,40 @@ from amex.app.session import closing_line, fail, say  # noqa: E402  (first: the 
 from amex.core.errors import JobFailed, UsageError  # noqa: E402
 
 INFORMATIONAL = {
-    "--help", "-h", "--hydra-help", "--info", "-i", "--cfg", "-c", "--shell-completion", "-sc"
+    "--help",
+    "-h",
+    "--hydra-help",
+    "--info",
+    "-i",
+    "--cfg",
+    "-c",
+    "--shell-completion",
+    "-sc",
 }
+
+
+def flags_first(argv: list[str]) -> list[str]:
+    """``argv`` with ``-m`` and the config flags (with their values) before the overrides.
+
+    Hydra's parser takes the overrides as one run of positional arguments, so an override after
+    a flag (``task=1 --config-dir my_conf seed=2``) would be refused; the order of the overrides
+    is kept.
+    """
+    from amex.app.compose import FLAGS_WITH_VALUE
+
+    flags: list[str] = []
+    rest: list[str] = []
+    args = iter(argv)
+    for arg in args:
+        if arg in ("-m", "--multirun"):
+            flags.append(arg)
+        elif arg in FLAGS_WITH_VALUE:
+            flags += [arg, next(args, "")]
+        elif arg.partition("=")[0] in FLAGS_WITH_VALUE:
+            flags.append(arg)
+        else:
+            rest.append(arg)
+    return flags + rest
 
 
 def run_main() -> None:
@@ -36,9 +68,9 @@ def run_main() -> None:
     from amex.app.compose import CONF_DIR, PROG
     from amex.app.processes import LAUNCHER_PID, signals_raise
 
-    multirun_flags = [a for a in sys.argv[1:] if a in ("-m", "--multirun")]
-    argv = multirun_flags + [a for a in sys.argv[1:] if a not in multirun_flags]
-    sys.argv[1:] = argv  # Hydra's parser wants -m before the overrides; accept it anywhere
+    argv = flags_first(sys.argv[1:])
+    sys.argv[1:] = argv  # Hydra's parser wants its flags before the overrides; accept them anywhere
+    multirun_flags = [a for a in argv if a in ("-m", "--multirun")]
     debug = os.environ.get("AMEX_DEBUG") == "1"
     if "--version" in argv:
         from amex import __version__
@@ -59,22 +91,32 @@ def run_main() -> None:
 
     try:
         with signals_raise():
+            from amex.app.compose import register_schemas
+            from amex.app.job import task
+            from amex.app.launch import VERSION_BASE
+
+            register_schemas()
             if not INFORMATIONAL.intersection(argv):
                 from amex.app.checks import launch_lock, validate_command_line
+                from amex.app.launch import main_hydra, run_composed, single_run
 
+                # a single run is composed once, by the Hydra that runs it (amex.app.launch)
+                single = not multirun_flags
+                run_hydra, args = main_hydra(task, CONF_DIR, argv) if single else (None, None)
                 try:
-                    _lock = launch_lock(validate_command_line(argv), bool(multirun_flags))
+                    checked = validate_command_line(argv, run_hydra)
+                    _lock = launch_lock(checked.dirs, bool(multirun_flags))
                 except UsageError as e:
                     if debug:
                         raise
                     fail(str(e))
+                if single_run(checked.cfg):
+                    os.environ[LAUNCHER_PID] = str(os.getpid())
+                    run_composed(run_hydra, checked.cfg, args.config_name or "config", task)
+                    return
             import hydra
 
-            from amex.app.compose import register_schemas
-            from amex.app.job import task
-
-            register_schemas()
-            main = hydra.main(config_path=CONF_DIR, config_name="config", version_base="1.3")(task)
+            main = hydra.main(CONF_DIR, config_name="config", version_base=VERSION_BASE)(task)
             os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
             os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors, we print one line
             main()

@@ -208,10 +208,12 @@ def initialized() -> Iterator[Any]:
     from hydra import initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
+    from amex.app.launch import VERSION_BASE
+
     register_schemas()
     GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        with initialize_config_dir(config_dir=CONF_DIR, version_base=VERSION_BASE):
             yield GlobalHydra.instance().config_loader()
     finally:
         GlobalHydra.instance().clear()
@@ -285,9 +287,11 @@ def validated(config: Any) -> Any:
 
 
 @contextlib.contextmanager
-def composed(overrides: list[str], hydra_overrides: list[str]) -> Iterator[Any]:
+def composed(overrides: list[str], hydra_overrides: list[str], hydra: Any = None) -> Iterator[Any]:
     """The config the command line composes (Hydra's part included), read inside the block.
 
+    ``hydra``: the ``Hydra`` of a single run (:func:`amex.app.launch.main_hydra`), whose
+    composition the run then uses; else Hydra is initialized for this composition alone.
     Any error Hydra or OmegaConf raise, composing or in the block, becomes one
     :class:`LaunchError` naming the bad override.
     """
@@ -296,13 +300,18 @@ def composed(overrides: list[str], hydra_overrides: list[str]) -> Iterator[Any]:
 
     setup_globals()  # the ${now:...} resolver of the default directories
     try:
-        with initialized():
-            user = [o for o in hydra_overrides if not o.startswith("hydra.searchpath=")]
-            cfg = compose(
-                config_name=SOURCES.name,
-                overrides=[*overrides, *user, *SOURCES.overrides()],
-                return_hydra_config=True,
-            )
+        if hydra is not None:
+            from amex.app.launch import compose_run
+
+            cfg = compose_run(hydra, SOURCES.name, [*overrides, *hydra_overrides])
+        else:
+            with initialized():
+                user = [o for o in hydra_overrides if not o.startswith("hydra.searchpath=")]
+                cfg = compose(
+                    config_name=SOURCES.name,
+                    overrides=[*overrides, *user, *SOURCES.overrides()],
+                    return_hydra_config=True,
+                )
         yield cfg
     except LaunchError:
         raise

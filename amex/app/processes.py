@@ -30,8 +30,6 @@ LAUNCHER_PID = "AMEX_LAUNCHER_PID"
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-
-
 def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
     raise Interrupted(signum)
 

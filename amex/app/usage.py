@@ -187,8 +187,12 @@ def help_text(conf_dirs: Path | list[Path], prog: str = "amex-run") -> str:
         "main options (default value, unit and meaning):",
         *_table([(f"{k}={v}", c) for k, v, c in options]),
         *_table([(f"{k}.*", c or "see --cfg job") for k, c in groups]),
-        *_table([("robot.*", "the arm: robot.q0, robot.urdf, ... (conf/robot/NAME.yaml)"),
-                 ("method.*", "the method's parameters (conf/method/NAME.yaml)")]),  # fmt: skip
+        *_table(
+            [
+                ("robot.*", "the arm: robot.q0, robot.urdf, ... (conf/robot/NAME.yaml)"),
+                ("method.*", "the method's parameters (conf/method/NAME.yaml)"),
+            ]
+        ),  # fmt: skip
         "",
         *_outputs(composed),
         "",
