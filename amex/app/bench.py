@@ -218,13 +218,16 @@ def _print_startup(quick: bool) -> None:
 
     times = startup_times(2 if quick else 5)
     floor = statistics.median(times.floor)
+    numba_floor = statistics.median(times.numba_floor)
     print(f"start-up of amex-run (whole process, user + system CPU, one {STEPS}-step episode;")
-    print(" floor: the interpreter importing the libraries a run calls)")
+    print(" floor: the interpreter importing the libraries a run calls; Numba floor: and Numba's")
+    print(" CPU target initialised, as the first call of any compiled function does)")
     for label, values in (("warm caches", times.warm), ("cold Numba cache", times.cold)):
         median = statistics.median(values)
         print(
             f"  {label:<17} median of {len(values)}: {median:6.3f} s  (min {min(values):.3f}, "
-            f"max {max(values):.3f})  floor {floor:6.3f} s  ratio {_ratio(median, floor)}"
+            f"max {max(values):.3f})  floor {floor:6.3f} s  ratio {_ratio(median, floor)}, "
+            f"Numba floor {numba_floor:6.3f} s  ratio {_ratio(median, numba_floor)}"
         )
 
 

@@ -2,10 +2,18 @@
 
 Every SLURM array task and every joblib worker pays it, so it is measured as a whole process:
 ``amex-run`` with one environment of Task 0 that stops after ``STEPS`` inner steps, its user +
-system CPU time read from ``getrusage(RUSAGE_CHILDREN)``. The floor is the same interpreter
-importing only the libraries a run calls (MuJoCo, Pinocchio, coal, Numba, SciPy's LAPACK, Hydra)
-and exiting. ``warm``: the Numba cache of this install; ``cold``: an empty ``NUMBA_CACHE_DIR``,
-i.e. every kernel a run calls compiled again, as on a fresh install.
+system CPU time read from ``getrusage(RUSAGE_CHILDREN)``. ``warm``: the Numba cache of this
+install; ``cold``: an empty ``NUMBA_CACHE_DIR``, i.e. every kernel a run calls compiled again, as
+on a fresh install.
+
+Two floors, each the same interpreter with the environment ``amex-run`` sets (one BLAS thread,
+no on-screen OpenGL), then exiting:
+
+- ``floor``: importing the libraries a run calls (MuJoCo, Pinocchio, coal, Numba, SciPy's LAPACK,
+  Hydra);
+- ``numba_floor``: the same, and Numba's CPU target initialised, which the first call of any
+  compiled function pays, cached or not (its registries of typing and lowering, and its runtime
+  compiled by LLVM).
 """
 
 from __future__ import annotations
@@ -24,12 +32,24 @@ STEPS = 10
 FLOOR_IMPORTS = "numpy, mujoco, pinocchio, coal, numba, scipy.linalg.lapack, hydra, omegaconf"
 
 
+#: Numba's CPU target initialised, as the first call of a compiled function does.
+NUMBA_INIT = "from numba.core.registry import cpu_target; cpu_target.target_context.refresh()"
+#: What ``amex-run`` sets before anything imports (amex.app.cli).
+RUN_ENVIRONMENT = {
+    "OMP_NUM_THREADS": "1",
+    "OPENBLAS_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "MUJOCO_GL": "disable",
+}
+
+
 class StartupTimes(NamedTuple):
     """CPU seconds (user + system) of whole processes, one per repetition."""
 
     warm: list[float]
     cold: list[float]
     floor: list[float]
+    numba_floor: list[float]
 
 
 def _child_cpu(command: list[str], env: dict[str, str], cwd: str) -> float:
@@ -60,17 +80,17 @@ def startup_times(repeats: int = 5) -> StartupTimes:
     from amex.app.warm import warm_bytecode
 
     warm_bytecode()
-    env = dict(os.environ)
-    warm: list[float] = []
-    cold: list[float] = []
-    floor: list[float] = []
+    env = {**os.environ, **{k: os.environ.get(k, v) for k, v in RUN_ENVIRONMENT.items()}}
+    times = StartupTimes([], [], [], [])
     with tempfile.TemporaryDirectory() as tmp:
         env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
         floor_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; gc.freeze()"]
+        numba_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; {NUMBA_INIT}; gc.freeze()"]
         _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
         for k in range(repeats):
-            warm.append(_child_cpu(_run_command(Path(tmp) / f"warm{k}"), env, tmp))
+            times.warm.append(_child_cpu(_run_command(Path(tmp) / f"warm{k}"), env, tmp))
             fresh = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / f"numba{k}"))
-            cold.append(_child_cpu(_run_command(Path(tmp) / f"cold{k}"), fresh, tmp))
-            floor.append(_child_cpu(floor_cmd, env, tmp))
-    return StartupTimes(warm, cold, floor)
+            times.cold.append(_child_cpu(_run_command(Path(tmp) / f"cold{k}"), fresh, tmp))
+            times.floor.append(_child_cpu(floor_cmd, env, tmp))
+            times.numba_floor.append(_child_cpu(numba_cmd, env, tmp))
+    return times

@@ -65,6 +65,9 @@ def flags_first(argv: list[str]) -> list[str]:
 
 def run_main() -> None:
     """``amex-run``: validate the command line, then hand it to Hydra."""
+    from amex.app.heap import hold, settle
+
+    hold()  # no cyclic collections during start-up (amex.app.heap); the job settles the heap
     from amex.app.compose import CONF_DIR, PROG
     from amex.app.processes import LAUNCHER_PID, signals_raise
 
@@ -116,6 +119,7 @@ def run_main() -> None:
                     return
             import hydra
 
+            settle()  # a sweep's launcher: the collector on again for the whole sweep
             main = hydra.main(CONF_DIR, config_name="config", version_base=VERSION_BASE)(task)
             os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
             os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors, we print one line

@@ -64,10 +64,9 @@ def task(cfg: Any) -> None:
     from hydra.core.hydra_config import HydraConfig
     from hydra.types import RunMode
     from omegaconf import OmegaConf
-    from tqdm.contrib.logging import logging_redirect_tqdm
 
     from amex.app.heap import settle
-    from amex.app.progress import progress_bar, run_line
+    from amex.app.progress import console_warnings, progress_bar, run_line
     from amex.experiment.runner import run
 
     config: Any = OmegaConf.to_object(cfg)
@@ -97,12 +96,9 @@ def task(cfg: Any) -> None:
     else:
         with (
             job_guard(run_dir, multirun=False),
-            logging_redirect_tqdm(),
+            console_warnings(),
             progress_bar(episodes, label) as bar,
         ):
-            for handler in logging.getLogger().handlers:  # tqdm's console handler: warnings
-                if type(handler).__name__ == "_TqdmLoggingHandler":  # only; the record: run.log
-                    handler.setLevel(logging.WARNING)
             successes = done = 0
 
             def progress(env: int, result: Any) -> None:

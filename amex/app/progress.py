@@ -25,6 +25,7 @@ import math
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -189,6 +190,40 @@ class LineBar:
     def close(self) -> None:
         """The final count."""
         self._show(force=True)
+
+
+@contextlib.contextmanager
+def console_warnings() -> Iterator[None]:
+    """Only warnings of the run's log on the console for the block; the record is ``run.log``.
+
+    On a terminal the console's lines go through tqdm (``logging_redirect_tqdm``), so that they
+    do not break its bar; in a log (:class:`LineBar`), the console handlers are only raised to
+    ``WARNING`` (tqdm's logging helpers, which import asyncio, ~25 ms, are not loaded).
+    """
+    import logging
+
+    if sys.stderr.isatty():
+        from tqdm.contrib.logging import logging_redirect_tqdm
+
+        with logging_redirect_tqdm():
+            for handler in logging.getLogger().handlers:  # tqdm's console handler
+                if type(handler).__name__ == "_TqdmLoggingHandler":
+                    handler.setLevel(logging.WARNING)
+            yield
+        return
+    console = [
+        h
+        for h in logging.getLogger().handlers
+        if type(h) is logging.StreamHandler and h.stream in (sys.stdout, sys.stderr)
+    ]
+    levels = [h.level for h in console]
+    for handler in console:
+        handler.setLevel(max(handler.level, logging.WARNING))
+    try:
+        yield
+    finally:
+        for handler, level in zip(console, levels, strict=True):
+            handler.setLevel(level)
 
 
 def progress_bar(total: int, desc: str) -> Any:

@@ -33,3 +33,13 @@ def test_bench_puts_amex_beside_its_target(capsys):
     out = capsys.readouterr().out
     line = next(x for x in out.splitlines() if x.strip().startswith("amex"))
     assert "target" in line and "5.0 us" in line
+
+
+@pytest.mark.slow
+def test_startup_is_timed_warm_cold_and_beside_both_floors():
+    from amex.app.bench_startup import startup_times
+
+    times = startup_times(repeats=1)
+    assert all(len(v) == 1 and v[0] > 0 for v in times)
+    # an empty Numba cache compiles every kernel a run calls: seconds, not the warm start's one
+    assert times.cold[0] > 2 * times.warm[0]
