@@ -101,7 +101,7 @@ def run_main() -> None:
             register_schemas()
             if not INFORMATIONAL.intersection(argv):
                 from amex.app.checks import launch_lock, validate_command_line
-                from amex.app.launch import main_hydra, run_composed, single_run
+                from amex.app.launch import main_hydra, run_composed, run_sweep, single_run
 
                 # a single run is composed once, by the Hydra that runs it (amex.app.launch)
                 single = not multirun_flags
@@ -113,13 +113,17 @@ def run_main() -> None:
                     if debug:
                         raise
                     fail(str(e))
+                os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
                 if single_run(checked.cfg):
-                    os.environ[LAUNCHER_PID] = str(os.getpid())
                     run_composed(run_hydra, checked.cfg, args.config_name or "config", task)
+                    return
+                if not single:
+                    settle()  # a sweep's launcher: the collector on again for the whole sweep
+                    run_sweep(*main_hydra(task, CONF_DIR, argv), task)
                     return
             import hydra
 
-            settle()  # a sweep's launcher: the collector on again for the whole sweep
+            settle()
             main = hydra.main(CONF_DIR, config_name="config", version_base=VERSION_BASE)(task)
             os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
             os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra re-raises its errors, we print one line

@@ -7,7 +7,9 @@ informational flag) :func:`main_hydra` sets up Hydra as ``hydra.main`` does (the
 job name and parser), the checks compose through it, and :func:`run_composed` runs the job on that
 composition as Hydra's own ``run`` does: its callbacks, its output directory, ``.hydra/`` record
 and logging. The run directory's files are the same as ``hydra.main``'s, ``hydra.mode=RUN`` in the
-record included. Sweeps and informational flags still go through ``hydra.main``.
+record included. A sweep (``-m``) is handed to Hydra's ``multirun`` without the composition that
+only reads ``hydra.mode`` (:func:`run_sweep`); informational flags (``--cfg``, ``--info``, ...)
+still go through ``hydra.main``.
 
 This uses Hydra's internal set-up functions (``hydra._internal``, pinned in ``pyproject.toml``);
 ``tests/app/test_launch.py`` compares a run's ``.hydra/`` record with ``hydra.main``'s.
@@ -87,6 +89,20 @@ def single_run(cfg: Any) -> bool:
     from hydra.types import RunMode
 
     return cfg is not None and cfg.hydra.mode == RunMode.RUN
+
+
+def run_sweep(hydra: Any, args: Any, task_function: TaskFunction) -> None:
+    """Hydra's ``multirun`` of the command line (``-m``), as ``hydra.main`` runs it; clear Hydra."""
+    from hydra.core.global_hydra import GlobalHydra
+
+    try:
+        hydra.multirun(
+            config_name=args.config_name or "config",
+            task_function=task_function,
+            overrides=[*args.overrides, "hydra.mode=MULTIRUN"],
+        )
+    finally:
+        GlobalHydra.instance().clear()
 
 
 def run_composed(hydra: Any, cfg: Any, config_name: str, task_function: TaskFunction) -> None:

@@ -29,11 +29,11 @@ def _env():
     return env
 
 
-def _record(run_dir: Path) -> dict:
-    """The run's ``.hydra`` files, its own directory's name replaced by ``RUN``."""
+def _record(run_dir: Path, root: Path | None = None) -> dict:
+    """The run's ``.hydra`` files, its directory (or ``root``, its sweep's) named ``RUN``."""
     record = {}
     for name in ("config.yaml", "hydra.yaml", "overrides.yaml"):
-        text = (run_dir / ".hydra" / name).read_text().replace(str(run_dir), "RUN")
+        text = (run_dir / ".hydra" / name).read_text().replace(str(root or run_dir), "RUN")
         record[name] = yaml.safe_load(text)
     return record
 
@@ -96,3 +96,31 @@ def test_a_single_run_composes_its_config_once(tmp_path, monkeypatch):
     cli.run_main()
     assert len(calls) == 1, calls
     assert (run_dir / "episodes.csv").is_file() and (run_dir / ".hydra" / "hydra.yaml").is_file()
+
+
+@pytest.mark.slow
+def test_a_sweep_writes_what_hydra_main_writes(tmp_path):
+    args = ["-m", "task=0", "method=track", "episodes=1", "max_time=0.01", "seed=0,1"]
+    ours, theirs = tmp_path / "ours", tmp_path / "theirs"
+    for command, out in (
+        ([AMEX_RUN], ours),
+        ([sys.executable, "-c", HYDRA_MAIN, "amex-run"], theirs),
+    ):
+        done = subprocess.run(
+            [*command, *args, f"hydra.sweep.dir={out}"],
+            cwd=tmp_path,
+            env=_env(),
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
+        assert done.returncode == 0, done.stderr
+    multirun = [
+        yaml.safe_load((d / "multirun.yaml").read_text().replace(str(d), "SWEEP"))
+        for d in (ours, theirs)
+    ]
+    assert multirun[0] == multirun[1]
+    jobs = sorted(p.name for p in ours.iterdir() if p.is_dir())
+    assert len(jobs) == 2 and jobs == sorted(p.name for p in theirs.iterdir() if p.is_dir())
+    for job in jobs:
+        assert _record(ours / job, ours) == _record(theirs / job, theirs), job
