@@ -42,7 +42,6 @@ from typing import Any
 
 from amex.core.errors import ConfigError
 from amex.core.version import __version__
-from amex.methods import get_method
 
 #: Parts of ``amex/`` (paths relative to it) outside the code digest: they do not compute results.
 NOT_RESULT_CODE = (
@@ -158,7 +157,13 @@ def _module_digest(module_name: str) -> str:
 
 
 def method_class(name: str, implementation: str = "ours") -> type | None:
-    """The class of method ``name``, or None if there is none (e.g. a plugin uninstalled)."""
+    """The class of method ``name``, or None if there is none (e.g. a plugin uninstalled).
+
+    The registry is imported here, not with this module: reading a store (``analysis``,
+    ``amex-log``) needs no method, and importing them all costs their kernels' libraries.
+    """
+    from amex.methods import get_method
+
     try:
         return get_method(name, implementation)
     except ConfigError:
