@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from amex.core.errors import ConfigError
+from amex.core.lazy import Lazy, LazyDict
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
@@ -314,15 +315,22 @@ class CR(Method):
         """Mode, horizon steps, iterations, cost, converged, solve time and the planned TCP path.
 
         ``plan`` is the TCP position at every knot of the current plan, shape (T + 1, 3) [m],
-        computed here (batched kinematics, ~0.1 ms for 400 knots), i.e. only when logged.
+        computed by batched kinematics (~0.1 ms for 400 knots) only when it is read: the dict
+        is a :class:`~amex.core.lazy.LazyDict` holding this step's knots (a new array at each
+        solve, never written in place), so a reader may read it later and still get this step's.
         """
-        s = self._status
-        return {
-            "mode": s.mode,
-            "steps": s.steps,
-            "iterations": s.iterations,
-            "cost": s.cost,
-            "converged": s.converged,
-            "solve_time": s.solve_time,
-            "plan": self.kinematics.frame_positions(self._knots, self.robot.tcp_frame_id),
-        }
+        s, knots, kinematics, tcp = (
+            self._status,
+            self._knots,
+            self.kinematics,
+            self.robot.tcp_frame_id,
+        )
+        return LazyDict(
+            mode=s.mode,
+            steps=s.steps,
+            iterations=s.iterations,
+            cost=s.cost,
+            converged=s.converged,
+            solve_time=s.solve_time,
+            plan=Lazy(lambda: kinematics.frame_positions(knots, tcp)),
+        )
