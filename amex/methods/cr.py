@@ -28,7 +28,7 @@ from amex.core.lazy import Lazy, LazyDict
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.knots import resample_knots, whole_knot_rows
+from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows, whole_knots
 from amex.plan.weights import CollisionWeights
 
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
@@ -184,6 +184,7 @@ class CR(Method):
         dt: float = 0.01,
         robot: RobotModel | None = None,
     ) -> None:
+        import amex.plan.optimizer as optimizer
         from amex.plan.optimizer import CompiledAssembly, TrajectoryCosts, batch_kinematics
 
         super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
@@ -194,6 +195,7 @@ class CR(Method):
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.assembly = CompiledAssembly(robot)  # the solver's buffers, kept between steps
+        self._optimizer = optimizer  # its solver looked up at each call (bench_cr wraps it)
         self.reference_q = Q
         self.reference_dt = float(plan.dt)
         self.duration = (len(Q) - 1) * self.reference_dt
@@ -239,14 +241,13 @@ class CR(Method):
         Raises:
             SolverError: for a non-finite observation or a failed solve (carries the problem).
         """
-        from amex.plan.optimizer import TrajectoryProblem, solve_trajectory
-
         tic = time.perf_counter()
         mode, steps = self.horizon(obs.t)
         if mode == "hold":
             self._status = CRStatus(mode, 0, 0, math.nan, False, 0.0)
             return self._status
-        problem = TrajectoryProblem(
+        optimizer = self._optimizer
+        problem = optimizer.TrajectoryProblem(
             q_start=obs.q,
             v_start=obs.qd,
             steps=steps,
@@ -270,7 +271,7 @@ class CR(Method):
                     frames = self._frames.take(slice(rows.start, rows.stop - 1))
                 elif rows[1] >= 1:
                     frames = self._frames.take(_columns(rows[1:] - 1))
-        solution = solve_trajectory(
+        solution = optimizer.solve_trajectory(
             self.robot,
             problem,
             q_init=q_init,
@@ -297,8 +298,14 @@ class CR(Method):
         if self._status.mode != "shrink":  # hold, or the tail's final approach
             return JointTarget(self._knots[-1].copy(), np.zeros(self._knots.shape[1]))
         u = self.dt / self._knots_dt
-        q = resample_knots(self._knots, 0.0, u / 2.0, 3)  # q(t), q(t + dt / 2), q(t + dt)
-        return JointTarget(q[1], (q[2] - q[0]) / self.dt)
+        knots, stride = self._knots, u / 2.0  # q(t), q(t + dt / 2), q(t + dt)
+        if len(knots) < 2 or whole_knots(len(knots), 0.0, stride, 3) is not None:
+            q = resample_knots(knots, 0.0, stride, 3)
+            return JointTarget(q[1], (q[2] - q[0]) / self.dt)
+        n = knots.shape[1]
+        q_mid, qd = np.empty(n), np.empty(n)
+        midpoint_target(knots, stride, self.dt, q_mid, qd)  # the two lines above, compiled
+        return JointTarget(q_mid, qd)
 
     # ----------------------------------------------------------------------------- Method
     def reset(self, obs: Observation) -> None:

@@ -22,9 +22,9 @@ from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
 from amex.plan.kinematics_kernels import near_pairs
 from amex.plan.optimizer.assembly_kernels import (
-    acceleration_residuals,
     damped_system,
     equal,
+    start_residuals,
     take_step,
     wake_pairs,
 )
@@ -163,6 +163,7 @@ class CompiledSolve:
         self, assembly: CompiledAssembly, problem: TrajectoryProblem, constants: _Constants
     ) -> None:
         self.assembly, self.problem, self.constants = assembly, problem, constants
+        self.q_start, self.v_start, self.dt = problem.q_start, problem.v_start, problem.dt
         self.n = len(constants.s_acc)
         k = len(problem.obstacle_radii)
         self.collides = constants.collision and k > 0
@@ -185,17 +186,16 @@ class CompiledSolve:
         ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`).
         """
         problem, robot, c = self.problem, self.assembly.robot, self.constants
-        if r_acc is None:
-            r_acc = np.empty_like(x)
-            acceleration_residuals(x, problem.q_start, problem.v_start, problem.dt, c.s_acc, r_acc)
         T = x.shape[0]
-        q_prev = x[-2] if T > 1 else problem.q_start
+        if r_acc is None or v_last is None:
+            r_acc, v_last = np.empty_like(x), np.empty(self.n)
+            start_residuals(x, self.q_start, self.v_start, self.dt, c.s_acc, r_acc, v_last)
         r_fin, J_fin = final_terms(
             robot.model,
             self.assembly.data,
             robot.tcp_frame_id,
             problem,
-            q_prev,
+            x[-2] if T > 1 else self.q_start,
             x[-1],
             c.final_weights,
             v_last,
@@ -271,7 +271,26 @@ class CompiledSolve:
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
     ) -> np.ndarray:
         """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
-        band, rhs = self.system(point, model, woken, lam)
+        c, size = self.constants, point.r_acc.size
+        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
+        damped_system(
+            band,
+            rhs,
+            c.band_scale,
+            c.metric,
+            model.final_JtJ,
+            model.final_Jtr,
+            model.final_first,
+            point.r_acc,
+            c.s_acc2,
+            point.cap,
+            point.obs,
+            point.knot,
+            model.J_col,
+            point.r_near,
+            woken,
+            lam,
+        )  # system()'s, written out (one call less per iteration)
         try:
             return solve_band(band, rhs)
         except (LinAlgError, ValueError) as e:
@@ -279,14 +298,14 @@ class CompiledSolve:
 
     def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
         """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
-        x, problem = point.x, self.problem
+        x = point.x
         out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(self.n)
         small = take_step(
             x,
             step,
-            problem.q_start,
-            problem.v_start,
-            problem.dt,
+            self.q_start,
+            self.v_start,
+            self.dt,
             self.constants.s_acc,
             tolerance,
             out,
