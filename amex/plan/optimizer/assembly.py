@@ -16,11 +16,12 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+import pinocchio as pin
 from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
-from amex.plan.kinematics_kernels import near_pairs
+from amex.plan.kinematics_kernels import final_terms_joint, near_pairs
 from amex.plan.optimizer.assembly_kernels import (
     damped_system,
     equal,
@@ -37,6 +38,7 @@ from amex.robot import RobotModel
 
 __all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized", "assembly_for"]
 
+_LWA = pin.LOCAL_WORLD_ALIGNED
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
 _NO_ROWS = np.zeros((0, 0))
 #: An iterate's collision fields without collision term: cap, obs, knot, r_near.
@@ -113,6 +115,7 @@ class CompiledAssembly:
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.data = robot.model.createData()
+        self.Jz = np.empty((3, robot.model.nv))  # the final terms' J_z, scratch
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
         self._scratch = np.zeros((0, 0, 0))
         self._constants: tuple[object, float, _Constants] | None = None
@@ -164,7 +167,12 @@ class CompiledSolve:
     ) -> None:
         self.assembly, self.problem, self.constants = assembly, problem, constants
         self.q_start, self.v_start, self.dt = problem.q_start, problem.v_start, problem.dt
-        self.n = len(constants.s_acc)
+        self.n = n = len(constants.s_acc)
+        robot = assembly.robot
+        self.model, self.data, self.fid = robot.model, assembly.data, robot.tcp_frame_id
+        self.tcp_velocity = problem.costs.final_velocity_space == "tcp"  # the original's
+        self.w3, self.rate_rows = constants.final_weights[3], slice(6 + n, None)
+        self.Jz = assembly.Jz
         k = len(problem.obstacle_radii)
         self.collides = constants.collision and k > 0
         self.shape = (len(assembly.robot.capsules), k, problem.steps)
@@ -185,21 +193,26 @@ class CompiledSolve:
         ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals;
         ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`).
         """
-        problem, robot, c = self.problem, self.assembly.robot, self.constants
+        problem, c, n = self.problem, self.constants, self.n
         T = x.shape[0]
         if r_acc is None or v_last is None:
-            r_acc, v_last = np.empty_like(x), np.empty(self.n)
+            r_acc, v_last = np.empty_like(x), np.empty(n)
             start_residuals(x, self.q_start, self.v_start, self.dt, c.s_acc, r_acc, v_last)
-        r_fin, J_fin = final_terms(
-            robot.model,
-            self.assembly.data,
-            robot.tcp_frame_id,
-            problem,
-            x[-2] if T > 1 else self.q_start,
-            x[-1],
-            c.final_weights,
-            v_last,
-        )
+        model, data, fid, q_prev = self.model, self.data, self.fid, x[-2] if T > 1 else None
+        if self.tcp_velocity:
+            q_prev = self.q_start if q_prev is None else q_prev
+            w = c.final_weights
+            r_fin, J_fin = final_terms(model, data, fid, problem, q_prev, x[-1], w, v_last)
+        else:  # final_terms' calls for the joint velocity, written out (two per iteration)
+            pin.computeJointJacobians(model, data, x[-1])
+            oMf = pin.updateFramePlacement(model, data, fid)
+            J = pin.getFrameJacobian(model, data, fid, _LWA)
+            r_fin, J_fin, Jz = np.empty(9 + n), np.empty((9 + n, 2 * n)), self.Jz
+            w, goal, axis = c.final_weights, problem.goal_pos, problem.goal_axis
+            Jwv = J[3:].dot(v_last)
+            R, p = oMf.rotation, oMf.translation
+            final_terms_joint(J, R, p, v_last, Jwv, goal, axis, w, self.dt, Jz, r_fin, J_fin)
+            np.multiply(Jz.dot(v_last), self.w3, out=r_fin[self.rate_rows])  # w[3] (Jz @ v)
         if T == 1:  # q_{T-1} is the fixed start
             J_fin = J_fin[:, self.n :]
         flat_acc = r_acc.reshape(-1)
