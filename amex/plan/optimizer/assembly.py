@@ -21,7 +21,12 @@ from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
-from amex.plan.kinematics_kernels import final_terms_joint, near_pairs
+from amex.plan.kinematics_kernels import (
+    capsule_sphere_distances,
+    final_terms_joint,
+    near_pairs,
+    pair_gradients,
+)
 from amex.plan.optimizer.assembly_kernels import (
     damped_system,
     equal,
@@ -119,6 +124,26 @@ class CompiledAssembly:
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
         self._scratch = np.zeros((0, 0, 0))
         self._constants: tuple[object, float, _Constants] | None = None
+        self._trials: list[tuple[np.ndarray, ...]] = []
+
+    def trial_buffers(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Knots, acceleration residuals, final velocity, final residuals and Jacobian buffers.
+
+        Shaped for a trial from the iterate at ``x`` (T, n): (T, n), (T, n), (n,), (9 + n,),
+        (9 + n, 2n). Two sets, taken in turn: never the set that holds ``x`` (the iterate a
+        trial starts from stays intact; a solve holds at most that one and its trial).
+        """
+        T, n = x.shape
+        trials = self._trials
+        if not trials or trials[0][0].shape[0] < T or trials[0][0].shape[1] != n:
+            rows = max(T, trials[0][0].shape[0] if trials else 0)
+            trials[:] = [
+                (np.empty((rows, n)), np.empty((rows, n)), np.empty(n), np.empty(9 + n))
+                + (np.empty((9 + n, 2 * n)),)
+                for _ in range(2)
+            ]
+        knots, r_acc, v_last, r_fin, J_fin = trials[1 if x.base is trials[0][0] else 0]
+        return knots[:T], r_acc[:T], v_last, r_fin, J_fin
 
     def buffers(self, width: int, size: int) -> tuple[np.ndarray, np.ndarray]:
         """A Fortran-ordered (width, size) band and a (size,) vector, overwritten by each use."""
@@ -187,11 +212,13 @@ class CompiledSolve:
         known: KnotFrames | None = None,
         r_acc: np.ndarray | None = None,
         v_last: np.ndarray | None = None,
+        final: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> Iterate:
         """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`).
 
         ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals;
-        ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`).
+        ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`); ``final``:
+        buffers for the final residuals (9 + n,) and their Jacobian (9 + n, 2n).
         """
         problem, c, n = self.problem, self.constants, self.n
         T = x.shape[0]
@@ -207,7 +234,8 @@ class CompiledSolve:
             pin.computeJointJacobians(model, data, x[-1])
             oMf = pin.updateFramePlacement(model, data, fid)
             J = pin.getFrameJacobian(model, data, fid, _LWA)
-            r_fin, J_fin, Jz = np.empty(9 + n), np.empty((9 + n, 2 * n)), self.Jz
+            r_fin, J_fin = (np.empty(9 + n), np.empty((9 + n, 2 * n))) if final is None else final
+            Jz = self.Jz
             w, goal, axis = c.final_weights, problem.goal_pos, problem.goal_axis
             Jwv = J[3:].dot(v_last)
             R, p = oMf.rotation, oMf.translation
@@ -224,7 +252,22 @@ class CompiledSolve:
         dist = None
         if known is not None and self._same_obstacles(known):
             dist = known.dist
-        if dist is None:
+        if dist is None and T >= 2:  # capsule_distances' kernel call, its arrays at hand
+            C, k = self.shape[0], self.shape[1]
+            dist = CapsuleDistances(np.empty((C, k, T)), np.empty((C, k, 3, T)))
+            capsule_sphere_distances(
+                poses.rotation,
+                poses.position,
+                kin.cap_joint,
+                kin.cap_ends,
+                kin.cap_inv_len2,
+                kin.cap_radius,
+                problem.obstacles,
+                problem.obstacle_radii,
+                dist.distance,
+                dist.offset,
+            )
+        elif dist is None:
             dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
         scratch = self.assembly.scratch(self.shape)  # near_pairs' dense residuals, not read
         cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, scratch)
@@ -244,8 +287,18 @@ class CompiledSolve:
         J_col = _NO_ROWS
         if point.knot.size and point.poses is not None and point.dist is not None:
             c = self.constants
-            J_col = self.assembly.kinematics.distance_gradients(
-                point.poses, point.dist, self.problem.obstacles, (point.cap, point.obs, point.knot)
+            kin, poses = self.assembly.kinematics, point.poses
+            J_col = np.empty((point.cap.shape[0], self.n))  # distance_gradients' kernel call
+            pair_gradients(
+                poses.axis,
+                poses.position,
+                point.dist.offset,
+                self.problem.obstacles,
+                kin.cap_support,
+                point.cap,
+                point.obs,
+                point.knot,
+                J_col,
             )
             J_col *= -c.s_col / c.margin
         first = self.n * point.x.shape[0] - J_fin.shape[1]
@@ -312,7 +365,7 @@ class CompiledSolve:
     def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
         """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
         x = point.x
-        out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(self.n)
+        out, r_acc, v_last, r_fin, J_fin = self.assembly.trial_buffers(x)
         small = take_step(
             x,
             step,
@@ -325,7 +378,7 @@ class CompiledSolve:
             r_acc,
             v_last,
         )
-        return self.evaluate(out, None, r_acc, v_last), small
+        return self.evaluate(out, None, r_acc, v_last, (r_fin, J_fin)), small
 
     def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
         """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
