@@ -8,6 +8,13 @@ to the next. The numbers are those of the numpy functions it replaces (the oracl
 :class:`NumpyAssembly`: :func:`~.residuals.residuals`, :func:`~.linearize.linearize`, the damped
 step) bit for bit; ``tests/plan/test_assembly.py`` compares them. The authors' proxy collision
 term (``collision_cost=proxy``) runs on the oracle.
+
+Over the 400-line guide (~425) on purpose: CR's outer step runs ``evaluate`` two or three
+times, so the kernels' calls of the final terms, distances and gradients are written out in it
+(the same calls, in the same order, as :func:`~.final_terms.final_terms` and
+:class:`~amex.plan.batch_kinematics.BatchKinematics` make them), and the trials reuse two sets
+of buffers (:meth:`CompiledAssembly.trial_buffers`): each layer less was measurable there
+(issue #29, docs/results/speed.md).
 """
 
 from __future__ import annotations
