@@ -28,7 +28,7 @@ from amex.core.lazy import Lazy, LazyDict
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows, whole_knots
+from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
@@ -299,7 +299,7 @@ class CR(Method):
             return JointTarget(self._knots[-1].copy(), np.zeros(self._knots.shape[1]))
         u = self.dt / self._knots_dt
         knots, stride = self._knots, u / 2.0  # q(t), q(t + dt / 2), q(t + dt)
-        if len(knots) < 2 or whole_knots(len(knots), 0.0, stride, 3) is not None:
+        if len(knots) < 2 or abs(stride - round(stride)) <= 1e-9:  # whole knots (whole_knots)
             q = resample_knots(knots, 0.0, stride, 3)
             return JointTarget(q[1], (q[2] - q[0]) / self.dt)
         n = knots.shape[1]
