@@ -31,6 +31,7 @@ from amex.methods.base import Method, MethodConfig, Observation
 from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
+_new = tuple.__new__  # a NamedTuple made without its Python-level __new__ (the same tuple)
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
 CR_COLLISION_COSTS = ("auto", "hinge", "proxy")
 
@@ -283,14 +284,9 @@ class CR(Method):
         )
         self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
         self._frames = solution.frames
-        self._status = CRStatus(
-            mode,
-            steps,
-            solution.iterations,
-            solution.cost,
-            solution.converged,
-            time.perf_counter() - tic,
-        )
+        took = time.perf_counter() - tic
+        fields = (mode, steps, solution.iterations, solution.cost, solution.converged, took)
+        self._status = _new(CRStatus, fields)  # CRStatus(*fields)
         return self._status
 
     def target(self) -> JointTarget:
@@ -305,7 +301,7 @@ class CR(Method):
         n = knots.shape[1]
         q_mid, qd = np.empty(n), np.empty(n)
         midpoint_target(knots, stride, self.dt, q_mid, qd)  # the two lines above, compiled
-        return JointTarget(q_mid, qd)
+        return _new(JointTarget, (q_mid, qd))
 
     # ----------------------------------------------------------------------------- Method
     def reset(self, obs: Observation) -> None:
@@ -315,8 +311,7 @@ class CR(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`: :meth:`plan`, then the joint target :meth:`target`."""
         self.plan(obs)
-        q, qd = self.target()
-        return Command(q=q, qd=qd)
+        return _new(Command, (None, None, *self.target()))  # Command(q=q*, qd=q_dot*)
 
     def internals(self) -> dict[str, Any]:
         """Mode, horizon steps, iterations, cost, converged, solve time and the planned TCP path.

@@ -51,6 +51,8 @@ from amex.robot import RobotModel
 __all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized", "assembly_for"]
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
+_new = tuple.__new__  # a NamedTuple made without its Python-level __new__ (the same tuple)
+_NO_FLAGS = np.zeros((0, 0, 0), dtype=bool)
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
 _NO_ROWS = np.zeros((0, 0))
 #: An iterate's collision fields without collision term: cap, obs, knot, r_near.
@@ -112,6 +114,9 @@ class _Constants(NamedTuple):
     margin: float  # collision margin [m]
     s_col: float  # sqrt(w_col)
     collision: bool  # a collision term at all (w_col > 0 and capsules)
+    w3: float  # the axis rate's weight root (final_weights[3])
+    rate_rows: slice  # the axis rate's rows of the final residuals
+    tcp_velocity: bool  # the final velocity of the TCP (the original's), not of the joints
 
 
 class CompiledAssembly:
@@ -128,6 +133,8 @@ class CompiledAssembly:
         self.kinematics = batch_kinematics(robot)
         self.data = robot.model.createData()
         self.Jz = np.empty((3, robot.model.nv))  # the final terms' J_z, scratch
+        self.nv, self.capsules = int(robot.model.nv), len(robot.capsules)
+        self.pinocchio = (robot.model, self.data, robot.tcp_frame_id)
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
         self._scratch = np.zeros((0, 0, 0))
         self._constants: tuple[object, float, _Constants] | None = None
@@ -188,6 +195,9 @@ class CompiledAssembly:
             float(w.collision_margin),
             math.sqrt(w.collision),
             bool(self.robot.capsules) and w.collision > 0.0,
+            final_weights(c)[3],
+            slice(6 + n, None),
+            c.final_velocity_space == "tcp",
         )
 
 
@@ -199,18 +209,14 @@ class CompiledSolve:
     ) -> None:
         self.assembly, self.problem, self.constants = assembly, problem, constants
         self.q_start, self.v_start, self.dt = problem.q_start, problem.v_start, problem.dt
-        self.n = n = len(constants.s_acc)
-        robot = assembly.robot
-        self.model, self.data, self.fid = robot.model, assembly.data, robot.tcp_frame_id
-        self.tcp_velocity = problem.costs.final_velocity_space == "tcp"  # the original's
-        self.w3, self.rate_rows = constants.final_weights[3], slice(6 + n, None)
-        self.Jz = assembly.Jz
-        k = len(problem.obstacle_radii)
+        self.n, k = assembly.nv, len(problem.obstacle_radii)
         self.collides = constants.collision and k > 0
-        self.shape = (len(assembly.robot.capsules), k, problem.steps)
+        self.shape = (assembly.capsules, k, problem.steps)
 
     def woken(self) -> np.ndarray:
-        """No pair woken yet: (C, k, T) flags."""
+        """No pair woken yet: (C, k, T) flags (without obstacles the empty ones, shared)."""
+        if self.shape[1] == 0:
+            return _NO_FLAGS
         return np.zeros(self.shape, dtype=bool)
 
     def evaluate(
@@ -227,14 +233,13 @@ class CompiledSolve:
         ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`); ``final``:
         buffers for the final residuals (9 + n,) and their Jacobian (9 + n, 2n).
         """
-        problem, c, n = self.problem, self.constants, self.n
-        T = x.shape[0]
+        problem, c, n, T = self.problem, self.constants, self.n, x.shape[0]
         if r_acc is None or v_last is None:
             r_acc, v_last = np.empty_like(x), np.empty(n)
             start_residuals(x, self.q_start, self.v_start, self.dt, c.s_acc, r_acc, v_last)
-        model, data, fid, q_prev = self.model, self.data, self.fid, x[-2] if T > 1 else None
-        if self.tcp_velocity:
-            q_prev = self.q_start if q_prev is None else q_prev
+        model, data, fid = self.assembly.pinocchio
+        if c.tcp_velocity:
+            q_prev = x[-2] if T > 1 else self.q_start
             w = c.final_weights
             r_fin, J_fin = final_terms(model, data, fid, problem, q_prev, x[-1], w, v_last)
         else:  # final_terms' calls for the joint velocity, written out (two per iteration)
@@ -242,18 +247,16 @@ class CompiledSolve:
             oMf = pin.updateFramePlacement(model, data, fid)
             J = pin.getFrameJacobian(model, data, fid, _LWA)
             r_fin, J_fin = (np.empty(9 + n), np.empty((9 + n, 2 * n))) if final is None else final
-            Jz = self.Jz
-            w, goal, axis = c.final_weights, problem.goal_pos, problem.goal_axis
-            Jwv = J[3:].dot(v_last)
-            R, p = oMf.rotation, oMf.translation
+            Jz, goal, axis = self.assembly.Jz, problem.goal_pos, problem.goal_axis
+            Jwv, R, p, w = J[3:].dot(v_last), oMf.rotation, oMf.translation, c.final_weights
             final_terms_joint(J, R, p, v_last, Jwv, goal, axis, w, self.dt, Jz, r_fin, J_fin)
-            np.multiply(Jz.dot(v_last), self.w3, out=r_fin[self.rate_rows])  # w[3] (Jz @ v)
+            np.multiply(Jz.dot(v_last), c.w3, out=r_fin[c.rate_rows])  # w[3] (Jz @ v)
         if T == 1:  # q_{T-1} is the fixed start
-            J_fin = J_fin[:, self.n :]
+            J_fin = J_fin[:, n:]
         flat_acc = r_acc.reshape(-1)
         cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ calls it
         if not self.collides:
-            return Iterate(x, r_acc, r_fin, J_fin, cost, None, None, *_NONE)
+            return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, None, None, *_NONE))
         kin = self.assembly.kinematics
         poses = known.poses if known is not None else kin.forward(x)
         dist = None
@@ -280,7 +283,7 @@ class CompiledSolve:
         cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, scratch)
         if knot.size:
             cost += float(r_near.dot(r_near))
-        return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near)
+        return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near))
 
     def _same_obstacles(self, known: KnotFrames) -> bool:
         """Whether ``known`` was computed for this problem's obstacles (as ``distances`` tests)."""
@@ -312,7 +315,7 @@ class CompiledSolve:
         # numpy's gemv either way; dot has less overhead, and calls it as @ does for the whole
         # (contiguous) Jacobian only, not for the T = 1 view of its last columns
         Jtr = J_fin.T.dot(point.r_fin) if J_fin.flags.c_contiguous else J_fin.T @ point.r_fin
-        return Linearized(J_fin.T @ J_fin, Jtr, first, J_col)
+        return _new(Linearized, (J_fin.T @ J_fin, Jtr, first, J_col))
 
     def system(
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
@@ -423,7 +426,11 @@ def assembly_for(
     ``assembly`` (a new compiled one if None or of another robot), or the numpy one where the
     proxy collision term is active (obstacles, capsules and a weight).
     """
-    w = problem.costs.weights
+    costs = problem.costs
+    mine = isinstance(assembly, CompiledAssembly) and assembly.robot is robot
+    if mine and costs.collision_cost != "proxy":
+        return assembly  # type: ignore[return-value]  # CR's every step (checked: compiled)
+    w = costs.weights
     collides = len(problem.obstacle_radii) and robot.capsules and w.collision > 0.0
     if problem.costs.collision_cost == "proxy" and collides:
         return NumpyAssembly(robot)
