@@ -24,12 +24,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from amex.core.errors import ConfigError
+from amex.core.lazy import Lazy, LazyDict
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.knots import resample_knots, whole_knot_rows
+from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
+_new = tuple.__new__  # a NamedTuple made without its Python-level __new__ (the same tuple)
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
 CR_COLLISION_COSTS = ("auto", "hinge", "proxy")
 
@@ -183,6 +185,7 @@ class CR(Method):
         dt: float = 0.01,
         robot: RobotModel | None = None,
     ) -> None:
+        import amex.plan.optimizer as optimizer
         from amex.plan.optimizer import CompiledAssembly, TrajectoryCosts, batch_kinematics
 
         super().__init__(plan, config, dt, robot)  # checks robot and plan.q too (needs_robot)
@@ -193,6 +196,7 @@ class CR(Method):
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.assembly = CompiledAssembly(robot)  # the solver's buffers, kept between steps
+        self._optimizer = optimizer  # its solver looked up at each call (bench_cr wraps it)
         self.reference_q = Q
         self.reference_dt = float(plan.dt)
         self.duration = (len(Q) - 1) * self.reference_dt
@@ -238,14 +242,13 @@ class CR(Method):
         Raises:
             SolverError: for a non-finite observation or a failed solve (carries the problem).
         """
-        from amex.plan.optimizer import TrajectoryProblem, solve_trajectory
-
         tic = time.perf_counter()
         mode, steps = self.horizon(obs.t)
         if mode == "hold":
             self._status = CRStatus(mode, 0, 0, math.nan, False, 0.0)
             return self._status
-        problem = TrajectoryProblem(
+        optimizer = self._optimizer
+        problem = optimizer.TrajectoryProblem(
             q_start=obs.q,
             v_start=obs.qd,
             steps=steps,
@@ -269,7 +272,7 @@ class CR(Method):
                     frames = self._frames.take(slice(rows.start, rows.stop - 1))
                 elif rows[1] >= 1:
                     frames = self._frames.take(_columns(rows[1:] - 1))
-        solution = solve_trajectory(
+        solution = optimizer.solve_trajectory(
             self.robot,
             problem,
             q_init=q_init,
@@ -281,14 +284,9 @@ class CR(Method):
         )
         self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
         self._frames = solution.frames
-        self._status = CRStatus(
-            mode,
-            steps,
-            solution.iterations,
-            solution.cost,
-            solution.converged,
-            time.perf_counter() - tic,
-        )
+        took = time.perf_counter() - tic
+        fields = (mode, steps, solution.iterations, solution.cost, solution.converged, took)
+        self._status = _new(CRStatus, fields)  # CRStatus(*fields)
         return self._status
 
     def target(self) -> JointTarget:
@@ -296,8 +294,14 @@ class CR(Method):
         if self._status.mode != "shrink":  # hold, or the tail's final approach
             return JointTarget(self._knots[-1].copy(), np.zeros(self._knots.shape[1]))
         u = self.dt / self._knots_dt
-        q = resample_knots(self._knots, 0.0, u / 2.0, 3)  # q(t), q(t + dt / 2), q(t + dt)
-        return JointTarget(q[1], (q[2] - q[0]) / self.dt)
+        knots, stride = self._knots, u / 2.0  # q(t), q(t + dt / 2), q(t + dt)
+        if len(knots) < 2 or abs(stride - round(stride)) <= 1e-9:  # whole knots (whole_knots)
+            q = resample_knots(knots, 0.0, stride, 3)
+            return JointTarget(q[1], (q[2] - q[0]) / self.dt)
+        n = knots.shape[1]
+        q_mid, qd = np.empty(n), np.empty(n)
+        midpoint_target(knots, stride, self.dt, q_mid, qd)  # the two lines above, compiled
+        return _new(JointTarget, (q_mid, qd))
 
     # ----------------------------------------------------------------------------- Method
     def reset(self, obs: Observation) -> None:
@@ -307,22 +311,28 @@ class CR(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`: :meth:`plan`, then the joint target :meth:`target`."""
         self.plan(obs)
-        q, qd = self.target()
-        return Command(q=q, qd=qd)
+        return _new(Command, (None, None, *self.target()))  # Command(q=q*, qd=q_dot*)
 
     def internals(self) -> dict[str, Any]:
         """Mode, horizon steps, iterations, cost, converged, solve time and the planned TCP path.
 
         ``plan`` is the TCP position at every knot of the current plan, shape (T + 1, 3) [m],
-        computed here (batched kinematics, ~0.1 ms for 400 knots), i.e. only when logged.
+        computed by batched kinematics (~0.1 ms for 400 knots) only when it is read: the dict
+        is a :class:`~amex.core.lazy.LazyDict` holding this step's knots (a new array at each
+        solve, never written in place), so a reader may read it later and still get this step's.
         """
-        s = self._status
-        return {
-            "mode": s.mode,
-            "steps": s.steps,
-            "iterations": s.iterations,
-            "cost": s.cost,
-            "converged": s.converged,
-            "solve_time": s.solve_time,
-            "plan": self.kinematics.frame_positions(self._knots, self.robot.tcp_frame_id),
-        }
+        s, knots, kinematics, tcp = (
+            self._status,
+            self._knots,
+            self.kinematics,
+            self.robot.tcp_frame_id,
+        )
+        return LazyDict(
+            mode=s.mode,
+            steps=s.steps,
+            iterations=s.iterations,
+            cost=s.cost,
+            converged=s.converged,
+            solve_time=s.solve_time,
+            plan=Lazy(lambda: kinematics.frame_positions(knots, tcp)),
+        )

@@ -45,6 +45,23 @@ def _blend_rows(knots: np.ndarray, offset: float, stride: float, out: np.ndarray
             out[k, j] = (1.0 - a) * knots[i, j] + a * knots[i + 1, j]
 
 
+@numba.njit(cache=True)
+def midpoint_target(
+    knots: np.ndarray, stride: float, dt: float, q_mid: np.ndarray, qd: np.ndarray
+) -> None:
+    """CR's joint target from its knots, one compiled call: ``q_mid`` and ``qd``, shapes (n,).
+
+    Rows at indices ``0, stride, 2 stride`` blended as :func:`resample_knots` blends them
+    (``stride`` not within 1e-9 of an integer, ``len(knots) >= 2``): ``q_mid`` the middle row,
+    ``qd = (q[2] - q[0]) / dt``, the numpy expression of ``CR.target``, bit for bit.
+    """
+    rows = np.empty((3, knots.shape[1]))
+    _blend_rows(knots, 0.0, stride, rows)
+    for j in range(knots.shape[1]):
+        q_mid[j] = rows[1, j]
+        qd[j] = (rows[2, j] - rows[0, j]) / dt
+
+
 def resample_knots_numpy(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:
     """:func:`resample_knots` in numpy (the reference of the compiled blend)."""
     last = len(knots) - 1

@@ -84,7 +84,7 @@ class TrajectoryCosts:
             raise ConfigError.invalid("costs.collision_margin", copy.collision_margin, "> 0 [m]")
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class TrajectoryProblem:
     """One trajectory optimization: start state, horizon, goal, obstacles and costs.
 
@@ -113,25 +113,50 @@ class TrajectoryProblem:
     obstacle_radii: np.ndarray = field(default_factory=lambda: np.zeros(0))
     costs: TrajectoryCosts = field(default_factory=TrajectoryCosts)
 
-    def __post_init__(self) -> None:
-        values = [np.array(getattr(self, name), dtype=float) for name in _ARRAYS]
-        if values[4].size == 0:
-            values[4] = np.zeros((0, 3))
-        for name, value in zip(_ARRAYS, values, strict=True):
-            object.__setattr__(self, name, value)
-        n, k = max(values[0].size, 1), values[5].size
+    def __init__(
+        self,
+        q_start: np.ndarray,
+        v_start: np.ndarray,
+        steps: int,
+        dt: float,
+        goal_pos: np.ndarray,
+        goal_axis: np.ndarray,
+        obstacles: np.ndarray | None = None,
+        obstacle_radii: np.ndarray | None = None,
+        costs: TrajectoryCosts | None = None,
+    ) -> None:
+        # written out, not the dataclass's __init__ and a __post_init__: CR builds one problem
+        # per outer step (six copies, six shape checks and one compiled finiteness check)
+        setattr_, asfloat = object.__setattr__, np.array
+        q, v = asfloat(q_start, dtype=float), asfloat(v_start, dtype=float)
+        g, a = asfloat(goal_pos, dtype=float), asfloat(goal_axis, dtype=float)
+        o = np.zeros((0, 3)) if obstacles is None else asfloat(obstacles, dtype=float)
+        r = np.zeros(0) if obstacle_radii is None else asfloat(obstacle_radii, dtype=float)
+        if o.size == 0:
+            o = np.zeros((0, 3))
+        setattr_(self, "q_start", q)
+        setattr_(self, "v_start", v)
+        setattr_(self, "steps", steps)
+        setattr_(self, "dt", dt)
+        setattr_(self, "goal_pos", g)
+        setattr_(self, "goal_axis", a)
+        setattr_(self, "obstacles", o)
+        setattr_(self, "obstacle_radii", r)
+        setattr_(self, "costs", TrajectoryCosts() if costs is None else costs)
+        n, k = max(q.size, 1), r.size
         shapes = ((n,), (n,), (3,), (3,), (k, 3), (k,))
-        for name, shape, value in zip(_ARRAYS, shapes, values, strict=True):
-            if value.shape != shape:
-                raise SolverError(f"trajectory problem: {name} has shape {value.shape}", self)
-        if not _all_finite(*values):  # one compiled check: CR builds one problem per step
-            for name, value in zip(_ARRAYS, values, strict=True):
+        if (q.shape, v.shape, g.shape, a.shape, o.shape, r.shape) != shapes:
+            for name, shape, value in zip(_ARRAYS, shapes, (q, v, g, a, o, r), strict=True):
+                if value.shape != shape:
+                    raise SolverError(f"trajectory problem: {name} has shape {value.shape}", self)
+        if not _all_finite(q, v, g, a, o, r):  # one compiled check
+            for name, value in zip(_ARRAYS, (q, v, g, a, o, r), strict=True):
                 if not np.isfinite(value).all():
                     raise SolverError(f"trajectory problem: non-finite {name}={value}", self)
-        if int(self.steps) != self.steps or self.steps < 1:
-            raise SolverError(f"trajectory problem: steps={self.steps}; valid: integer >= 1", self)
-        if not (math.isfinite(self.dt) and self.dt > 0.0):
-            raise SolverError(f"trajectory problem: dt={self.dt}; valid: > 0 [s]", self)
+        if int(steps) != steps or steps < 1:
+            raise SolverError(f"trajectory problem: steps={steps}; valid: integer >= 1", self)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise SolverError(f"trajectory problem: dt={dt}; valid: > 0 [s]", self)
 
 
 #: The array fields of :class:`TrajectoryProblem`, in the order of their shape checks.

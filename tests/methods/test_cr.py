@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import os
+import pickle
 import subprocess
 import sys
 from pathlib import Path
@@ -213,6 +214,35 @@ def test_internals_report_the_solve_and_the_planned_tcp_path(context):
     assert path.shape == (351, 3)
     for k in (0, 100, 350):
         np.testing.assert_allclose(path[k], robot.task_position(cr.knots[k])[:3], atol=1e-12)
+
+
+def test_internals_compute_the_planned_path_only_when_read_and_keep_their_step(context):
+    """``plan`` is lazy (no kinematics for a step nobody logs) and a late read is its own step's."""
+    config, ctx = context
+    robot, plan = ctx.robot, ctx.plan
+    cr = CR(plan, scene(CRConfig()), DT, robot)
+    obs = observe(config, 0.5, plan.q[50], (plan.q[51] - plan.q[49]) / (2 * DT))
+    cr.reset(obs)
+    cr.step(obs)
+    calls = []
+    kinematics = cr.kinematics
+
+    class Counting:
+        def frame_positions(self, q, frame_id):
+            calls.append(len(q))
+            return kinematics.frame_positions(q, frame_id)
+
+    cr.kinematics = Counting()
+    info, knots = cr.internals(), cr.knots.copy()
+    assert "plan" in info and len(info) == 7 and not calls
+    later = observe(config, 0.6, plan.q[60], (plan.q[61] - plan.q[59]) / (2 * DT))
+    cr.step(later)  # a new solve: a new plan
+    captured = {k: v for k, v in info.items()}  # the log's capture reads every item
+    assert calls == [351]
+    expected = kinematics.frame_positions(knots, robot.tcp_frame_id)
+    assert np.array_equal(captured["plan"], expected) and info["plan"] is captured["plan"]
+    assert calls == [351]  # computed once
+    assert pickle.loads(pickle.dumps(info)).keys() == info.keys()
 
 
 def test_non_finite_observation_raises_solver_error(context):

@@ -9,16 +9,24 @@ pairs and Levenberg terms, and whole solves with both must agree, sign bits incl
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
 
+from amex.core.errors import SolverError
 from amex.plan import optimizer as opt
-from amex.plan.knots import resample_knots, resample_knots_numpy, whole_knot_rows, whole_knots
+from amex.plan.knots import (
+    midpoint_target,
+    resample_knots,
+    resample_knots_numpy,
+    whole_knot_rows,
+    whole_knots,
+)
 from amex.plan.optimizer.assembly import CompiledAssembly
-from amex.plan.optimizer.assembly_kernels import segment_sum, take_step
+from amex.plan.optimizer.assembly_kernels import segment_sum, start_residuals, take_step
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly, damped_band_numpy
-from amex.plan.optimizer.residuals import free_knots
+from amex.plan.optimizer.residuals import acceleration_scale, free_knots, residuals
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
 from amex.plan.weights import CollisionWeights
 
@@ -228,3 +236,55 @@ def test_whole_knot_rows_are_whole_knots():
                     assert (rows is None) == (index is None)
                     if index is not None:
                         assert np.arange(length)[rows].tolist() == index.tolist()
+
+
+def test_start_residuals_are_the_numpy_residuals_and_final_velocity(robot):
+    """The first iterate's kernel gives :func:`~.residuals.residuals`' r_acc and final_terms' v."""
+    rng = np.random.default_rng(3)
+    for T in (1, 2, 3, 40):
+        problem = problem_near_obstacles(robot, rng, T, 0, T % 2 == 0)
+        x = free_knots(robot, problem, robot.q0 + rng.normal(scale=0.3, size=(T + 1, robot.nv)))
+        s_acc = acceleration_scale(problem.costs, problem.dt)
+        scale = np.full(robot.nv, s_acc) if isinstance(s_acc, float) else s_acc
+        r_acc, v_last = np.empty_like(x), np.empty(robot.nv)
+        start_residuals(x, problem.q_start, problem.v_start, problem.dt, scale, r_acc, v_last)
+        point = residuals(robot, robot.model.createData(), problem, x)
+        assert identical(r_acc, point.residuals[0])
+        q_prev = x[-2] if T > 1 else problem.q_start
+        assert identical(v_last, (x[-1] - q_prev) / problem.dt)
+
+
+def test_compiled_midpoint_target_equals_the_numpy_target():
+    """CR's target kernel: the blended rows of resample_knots and (q2 - q0) / dt, bit for bit."""
+    rng = np.random.default_rng(4)
+    for _ in range(500):
+        knots = rng.normal(size=(int(rng.integers(2, 30)), 7))
+        stride = float(rng.choice([0.5, 0.25, 1.5, rng.uniform(0.0, 3.0)]))
+        dt = float(rng.choice([0.01, 0.001, rng.uniform(1e-3, 0.1)]))
+        if whole_knots(len(knots), 0.0, stride, 3) is not None:
+            continue
+        q = resample_knots_numpy(knots, 0.0, stride, 3)
+        q_mid, qd = np.empty(7), np.empty(7)
+        midpoint_target(knots, stride, dt, q_mid, qd)
+        assert identical(q_mid, q[1]) and identical(qd, (q[2] - q[0]) / dt)
+
+
+def test_problem_checks_what_it_checked():
+    """TrajectoryProblem's own __init__: copies, the default obstacles, the same errors."""
+    q, g = np.zeros(7), np.array([0.0, 0.0, 1.0])
+    p = TrajectoryProblem(q, q, 3, 0.01, g, g)
+    assert p.obstacles.shape == (0, 3) and p.obstacle_radii.shape == (0,) and p.q_start is not q
+    assert dataclasses.replace(p, steps=4).steps == 4
+    bad = [
+        dict(v_start=np.zeros(6)),
+        dict(goal_pos=np.zeros(2)),
+        dict(obstacles=np.zeros((1, 3))),
+        dict(q_start=np.full(7, np.nan)),
+        dict(steps=0),
+        dict(steps=1.5),
+        dict(dt=0.0),
+        dict(dt=math.inf),
+    ]
+    for change in bad:
+        with pytest.raises(SolverError, match="trajectory problem"):
+            dataclasses.replace(p, **change)

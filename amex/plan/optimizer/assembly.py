@@ -8,6 +8,13 @@ to the next. The numbers are those of the numpy functions it replaces (the oracl
 :class:`NumpyAssembly`: :func:`~.residuals.residuals`, :func:`~.linearize.linearize`, the damped
 step) bit for bit; ``tests/plan/test_assembly.py`` compares them. The authors' proxy collision
 term (``collision_cost=proxy``) runs on the oracle.
+
+Over the 400-line guide (~425) on purpose: CR's outer step runs ``evaluate`` two or three
+times, so the kernels' calls of the final terms, distances and gradients are written out in it
+(the same calls, in the same order, as :func:`~.final_terms.final_terms` and
+:class:`~amex.plan.batch_kinematics.BatchKinematics` make them), and the trials reuse two sets
+of buffers (:meth:`CompiledAssembly.trial_buffers`): each layer less was measurable there
+(issue #29, docs/results/speed.md).
 """
 
 from __future__ import annotations
@@ -16,15 +23,21 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+import pinocchio as pin
 from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
-from amex.plan.kinematics_kernels import near_pairs
+from amex.plan.kinematics_kernels import (
+    capsule_sphere_distances,
+    final_terms_joint,
+    near_pairs,
+    pair_gradients,
+)
 from amex.plan.optimizer.assembly_kernels import (
-    acceleration_residuals,
     damped_system,
     equal,
+    start_residuals,
     take_step,
     wake_pairs,
 )
@@ -37,6 +50,9 @@ from amex.robot import RobotModel
 
 __all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized", "assembly_for"]
 
+_LWA = pin.LOCAL_WORLD_ALIGNED
+_new = tuple.__new__  # a NamedTuple made without its Python-level __new__ (the same tuple)
+_NO_FLAGS = np.zeros((0, 0, 0), dtype=bool)
 _NO_PAIRS = np.zeros(0, dtype=np.int64)
 _NO_ROWS = np.zeros((0, 0))
 #: An iterate's collision fields without collision term: cap, obs, knot, r_near.
@@ -98,6 +114,9 @@ class _Constants(NamedTuple):
     margin: float  # collision margin [m]
     s_col: float  # sqrt(w_col)
     collision: bool  # a collision term at all (w_col > 0 and capsules)
+    w3: float  # the axis rate's weight root (final_weights[3])
+    rate_rows: slice  # the axis rate's rows of the final residuals
+    tcp_velocity: bool  # the final velocity of the TCP (the original's), not of the joints
 
 
 class CompiledAssembly:
@@ -113,9 +132,32 @@ class CompiledAssembly:
         self.robot = robot
         self.kinematics = batch_kinematics(robot)
         self.data = robot.model.createData()
+        self.Jz = np.empty((3, robot.model.nv))  # the final terms' J_z, scratch
+        self.nv, self.capsules = int(robot.model.nv), len(robot.capsules)
+        self.pinocchio = (robot.model, self.data, robot.tcp_frame_id)
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
         self._scratch = np.zeros((0, 0, 0))
         self._constants: tuple[object, float, _Constants] | None = None
+        self._trials: list[tuple[np.ndarray, ...]] = []
+
+    def trial_buffers(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Knots, acceleration residuals, final velocity, final residuals and Jacobian buffers.
+
+        Shaped for a trial from the iterate at ``x`` (T, n): (T, n), (T, n), (n,), (9 + n,),
+        (9 + n, 2n). Two sets, taken in turn: never the set that holds ``x`` (the iterate a
+        trial starts from stays intact; a solve holds at most that one and its trial).
+        """
+        T, n = x.shape
+        trials = self._trials
+        if not trials or trials[0][0].shape[0] < T or trials[0][0].shape[1] != n:
+            rows = max(T, trials[0][0].shape[0] if trials else 0)
+            trials[:] = [
+                (np.empty((rows, n)), np.empty((rows, n)), np.empty(n), np.empty(9 + n))
+                + (np.empty((9 + n, 2 * n)),)
+                for _ in range(2)
+            ]
+        knots, r_acc, v_last, r_fin, J_fin = trials[1 if x.base is trials[0][0] else 0]
+        return knots[:T], r_acc[:T], v_last, r_fin, J_fin
 
     def buffers(self, width: int, size: int) -> tuple[np.ndarray, np.ndarray]:
         """A Fortran-ordered (width, size) band and a (size,) vector, overwritten by each use."""
@@ -153,6 +195,9 @@ class CompiledAssembly:
             float(w.collision_margin),
             math.sqrt(w.collision),
             bool(self.robot.capsules) and w.collision > 0.0,
+            final_weights(c)[3],
+            slice(6 + n, None),
+            c.final_velocity_space == "tcp",
         )
 
 
@@ -163,13 +208,15 @@ class CompiledSolve:
         self, assembly: CompiledAssembly, problem: TrajectoryProblem, constants: _Constants
     ) -> None:
         self.assembly, self.problem, self.constants = assembly, problem, constants
-        self.n = len(constants.s_acc)
-        k = len(problem.obstacle_radii)
+        self.q_start, self.v_start, self.dt = problem.q_start, problem.v_start, problem.dt
+        self.n, k = assembly.nv, len(problem.obstacle_radii)
         self.collides = constants.collision and k > 0
-        self.shape = (len(assembly.robot.capsules), k, problem.steps)
+        self.shape = (assembly.capsules, k, problem.steps)
 
     def woken(self) -> np.ndarray:
-        """No pair woken yet: (C, k, T) flags."""
+        """No pair woken yet: (C, k, T) flags (without obstacles the empty ones, shared)."""
+        if self.shape[1] == 0:
+            return _NO_FLAGS
         return np.zeros(self.shape, dtype=bool)
 
     def evaluate(
@@ -178,46 +225,65 @@ class CompiledSolve:
         known: KnotFrames | None = None,
         r_acc: np.ndarray | None = None,
         v_last: np.ndarray | None = None,
+        final: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> Iterate:
         """Residuals and cost at the free knots ``x`` (T, n) (:func:`~.residuals.residuals`).
 
         ``known``: the frames (and distances) at ``x``; ``r_acc``: its acceleration residuals;
-        ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`).
+        ``v_last``: its final joint velocity (:func:`~.assembly_kernels.take_step`); ``final``:
+        buffers for the final residuals (9 + n,) and their Jacobian (9 + n, 2n).
         """
-        problem, robot, c = self.problem, self.assembly.robot, self.constants
-        if r_acc is None:
-            r_acc = np.empty_like(x)
-            acceleration_residuals(x, problem.q_start, problem.v_start, problem.dt, c.s_acc, r_acc)
-        T = x.shape[0]
-        q_prev = x[-2] if T > 1 else problem.q_start
-        r_fin, J_fin = final_terms(
-            robot.model,
-            self.assembly.data,
-            robot.tcp_frame_id,
-            problem,
-            q_prev,
-            x[-1],
-            c.final_weights,
-            v_last,
-        )
+        problem, c, n, T = self.problem, self.constants, self.n, x.shape[0]
+        if r_acc is None or v_last is None:
+            r_acc, v_last = np.empty_like(x), np.empty(n)
+            start_residuals(x, self.q_start, self.v_start, self.dt, c.s_acc, r_acc, v_last)
+        model, data, fid = self.assembly.pinocchio
+        if c.tcp_velocity:
+            q_prev = x[-2] if T > 1 else self.q_start
+            w = c.final_weights
+            r_fin, J_fin = final_terms(model, data, fid, problem, q_prev, x[-1], w, v_last)
+        else:  # final_terms' calls for the joint velocity, written out (two per iteration)
+            pin.computeJointJacobians(model, data, x[-1])
+            oMf = pin.updateFramePlacement(model, data, fid)
+            J = pin.getFrameJacobian(model, data, fid, _LWA)
+            r_fin, J_fin = (np.empty(9 + n), np.empty((9 + n, 2 * n))) if final is None else final
+            Jz, goal, axis = self.assembly.Jz, problem.goal_pos, problem.goal_axis
+            Jwv, R, p, w = J[3:].dot(v_last), oMf.rotation, oMf.translation, c.final_weights
+            final_terms_joint(J, R, p, v_last, Jwv, goal, axis, w, self.dt, Jz, r_fin, J_fin)
+            np.multiply(Jz.dot(v_last), c.w3, out=r_fin[c.rate_rows])  # w[3] (Jz @ v)
         if T == 1:  # q_{T-1} is the fixed start
-            J_fin = J_fin[:, self.n :]
+            J_fin = J_fin[:, n:]
         flat_acc = r_acc.reshape(-1)
         cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ calls it
         if not self.collides:
-            return Iterate(x, r_acc, r_fin, J_fin, cost, None, None, *_NONE)
+            return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, None, None, *_NONE))
         kin = self.assembly.kinematics
         poses = known.poses if known is not None else kin.forward(x)
         dist = None
         if known is not None and self._same_obstacles(known):
             dist = known.dist
-        if dist is None:
+        if dist is None and T >= 2:  # capsule_distances' kernel call, its arrays at hand
+            C, k = self.shape[0], self.shape[1]
+            dist = CapsuleDistances(np.empty((C, k, T)), np.empty((C, k, 3, T)))
+            capsule_sphere_distances(
+                poses.rotation,
+                poses.position,
+                kin.cap_joint,
+                kin.cap_ends,
+                kin.cap_inv_len2,
+                kin.cap_radius,
+                problem.obstacles,
+                problem.obstacle_radii,
+                dist.distance,
+                dist.offset,
+            )
+        elif dist is None:
             dist = kin.capsule_distances(poses, problem.obstacles, problem.obstacle_radii)
         scratch = self.assembly.scratch(self.shape)  # near_pairs' dense residuals, not read
         cap, obs, knot, r_near = near_pairs(dist.distance, c.margin, GUARD, c.s_col, scratch)
         if knot.size:
             cost += float(r_near.dot(r_near))
-        return Iterate(x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near)
+        return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near))
 
     def _same_obstacles(self, known: KnotFrames) -> bool:
         """Whether ``known`` was computed for this problem's obstacles (as ``distances`` tests)."""
@@ -231,15 +297,25 @@ class CompiledSolve:
         J_col = _NO_ROWS
         if point.knot.size and point.poses is not None and point.dist is not None:
             c = self.constants
-            J_col = self.assembly.kinematics.distance_gradients(
-                point.poses, point.dist, self.problem.obstacles, (point.cap, point.obs, point.knot)
+            kin, poses = self.assembly.kinematics, point.poses
+            J_col = np.empty((point.cap.shape[0], self.n))  # distance_gradients' kernel call
+            pair_gradients(
+                poses.axis,
+                poses.position,
+                point.dist.offset,
+                self.problem.obstacles,
+                kin.cap_support,
+                point.cap,
+                point.obs,
+                point.knot,
+                J_col,
             )
             J_col *= -c.s_col / c.margin
         first = self.n * point.x.shape[0] - J_fin.shape[1]
         # numpy's gemv either way; dot has less overhead, and calls it as @ does for the whole
         # (contiguous) Jacobian only, not for the T = 1 view of its last columns
         Jtr = J_fin.T.dot(point.r_fin) if J_fin.flags.c_contiguous else J_fin.T @ point.r_fin
-        return Linearized(J_fin.T @ J_fin, Jtr, first, J_col)
+        return _new(Linearized, (J_fin.T @ J_fin, Jtr, first, J_col))
 
     def system(
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
@@ -271,7 +347,26 @@ class CompiledSolve:
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
     ) -> np.ndarray:
         """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
-        band, rhs = self.system(point, model, woken, lam)
+        c, size = self.constants, point.r_acc.size
+        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
+        damped_system(
+            band,
+            rhs,
+            c.band_scale,
+            c.metric,
+            model.final_JtJ,
+            model.final_Jtr,
+            model.final_first,
+            point.r_acc,
+            c.s_acc2,
+            point.cap,
+            point.obs,
+            point.knot,
+            model.J_col,
+            point.r_near,
+            woken,
+            lam,
+        )  # system()'s, written out (one call less per iteration)
         try:
             return solve_band(band, rhs)
         except (LinAlgError, ValueError) as e:
@@ -279,21 +374,21 @@ class CompiledSolve:
 
     def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
         """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
-        x, problem = point.x, self.problem
-        out, r_acc, v_last = np.empty_like(x), np.empty_like(x), np.empty(self.n)
+        x = point.x
+        out, r_acc, v_last, r_fin, J_fin = self.assembly.trial_buffers(x)
         small = take_step(
             x,
             step,
-            problem.q_start,
-            problem.v_start,
-            problem.dt,
+            self.q_start,
+            self.v_start,
+            self.dt,
             self.constants.s_acc,
             tolerance,
             out,
             r_acc,
             v_last,
         )
-        return self.evaluate(out, None, r_acc, v_last), small
+        return self.evaluate(out, None, r_acc, v_last, (r_fin, J_fin)), small
 
     def wake(self, point: Iterate, trial: Iterate, woken: np.ndarray, model: Linearized) -> bool:
         """Wake the pairs inactive at ``point`` that ``trial`` made active; whether any."""
@@ -331,7 +426,11 @@ def assembly_for(
     ``assembly`` (a new compiled one if None or of another robot), or the numpy one where the
     proxy collision term is active (obstacles, capsules and a weight).
     """
-    w = problem.costs.weights
+    costs = problem.costs
+    mine = isinstance(assembly, CompiledAssembly) and assembly.robot is robot
+    if mine and costs.collision_cost != "proxy":
+        return assembly  # type: ignore[return-value]  # CR's every step (checked: compiled)
+    w = costs.weights
     collides = len(problem.obstacle_radii) and robot.capsules and w.collision > 0.0
     if problem.costs.collision_cost == "proxy" and collides:
         return NumpyAssembly(robot)

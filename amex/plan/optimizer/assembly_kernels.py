@@ -334,7 +334,29 @@ def take_step(
         flat_out[i] = flat_x[i] + s
         large += 0 if abs(s) < tolerance else 1
     acceleration_residuals(out, q_start, v_start, dt, scale, r_acc)
-    for j in range(n):
-        before = out[T - 2, j] if T > 1 else q_start[j]
-        v_last[j] = (out[T - 1, j] - before) / dt
+    last_velocity(out, q_start, dt, v_last)
     return large == 0
+
+
+@numba.njit(cache=True)
+def last_velocity(x: np.ndarray, q_start: np.ndarray, dt: float, v_last: np.ndarray) -> None:
+    """``v_last = (q_T - q_{T-1}) / dt`` of the free knots ``x`` (``q_0`` the start for T = 1)."""
+    T, n = x.shape
+    for j in range(n):
+        before = x[T - 2, j] if T > 1 else q_start[j]
+        v_last[j] = (x[T - 1, j] - before) / dt
+
+
+@numba.njit(cache=True)
+def start_residuals(
+    x: np.ndarray,
+    q_start: np.ndarray,
+    v_start: np.ndarray,
+    dt: float,
+    scale: np.ndarray,
+    r_acc: np.ndarray,
+    v_last: np.ndarray,
+) -> None:
+    """:func:`acceleration_residuals` and :func:`last_velocity` of ``x``, in one call."""
+    acceleration_residuals(x, q_start, v_start, dt, scale, r_acc)
+    last_velocity(x, q_start, dt, v_last)

@@ -93,7 +93,11 @@ def solve_trajectory(
         )
     _retain_freed_memory()
     solve = assembly_for(robot, problem, assembly).begin(problem)
-    x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
+    shape = (problem.steps + 1, robot.model.nq)
+    if type(q_init) is np.ndarray and q_init.dtype == np.float64 and q_init.shape == shape:
+        x = q_init[1:]  # free_knots' answer, without its checks' call (CR's every step)
+    else:
+        x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
     if init_frames is not None and init_frames.poses.position.shape[2] != len(x):
         init_frames = None
     point = solve.evaluate(x, init_frames)
@@ -120,10 +124,6 @@ def solve_trajectory(
             converged = small_step
             if not solve.wake(point, trial, woken, current):  # type: ignore[arg-type]
                 lam *= 10.0
-    return TrajectorySolution(
-        np.concatenate((problem.q_start[None], point.x)),
-        point.cost,
-        iterations,
-        converged,
-        solve.frames(point),  # type: ignore[arg-type]
-    )
+    q = np.concatenate((problem.q_start[None], point.x))
+    frames = solve.frames(point)  # type: ignore[arg-type]
+    return tuple.__new__(TrajectorySolution, (q, point.cost, iterations, converged, frames))

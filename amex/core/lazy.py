@@ -1,0 +1,105 @@
+"""A dict whose values may be computed at their first read: a method's costly ``internals()``.
+
+:class:`LazyDict` is an ordinary ``dict`` to its readers (``d[k]``, ``get``, ``items``,
+``values``, ``pop``, ``copy``, ``dict(d)``, ``{**d}``, ``==``, pickling, JSON): a value given
+as a :class:`Lazy` is computed when it is first read, through any of them, and then kept. Its
+keys, ``in`` and ``len`` never compute anything. CR's planned TCP path (~0.1 ms of kinematics)
+is one: an outer step that nobody logs, or whose plan the logger skips, does not pay for it.
+
+The thunk must capture what it needs at creation (a snapshot: CR's knots are a new array at
+every solve, never written in place), so a late read gives the value of the step it belongs to.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from typing import Any
+
+__all__ = ["Lazy", "LazyDict"]
+
+
+class Lazy:
+    """A value computed by ``compute()`` when a :class:`LazyDict` first hands it out."""
+
+    __slots__ = ("compute",)
+
+    def __init__(self, compute: Callable[[], Any]) -> None:
+        self.compute = compute
+
+
+class LazyDict(dict):  # type: ignore[type-arg]
+    """A ``dict`` computing its :class:`Lazy` values at their first read (module notes)."""
+
+    def _resolve(self, key: Any, value: Any) -> Any:
+        if type(value) is Lazy:
+            value = value.compute()
+            dict.__setitem__(self, key, value)
+        return value
+
+    def _resolved(self) -> None:
+        for key, value in list(dict.items(self)):
+            if type(value) is Lazy:
+                self._resolve(key, value)
+
+    def __getitem__(self, key: Any) -> Any:
+        return self._resolve(key, dict.__getitem__(self, key))
+
+    def get(self, key: Any, default: Any = None) -> Any:
+        """``d[key]``, or ``default`` without the key."""
+        return self[key] if key in self else default  # noqa: SIM401 (self.get is this)
+
+    def pop(self, key: Any, *default: Any) -> Any:
+        """Remove ``key``; its value (computed), or ``default``."""
+        if key in self:
+            value = self[key]
+            dict.__delitem__(self, key)
+            return value
+        return dict.pop(self, key, *default)
+
+    def popitem(self) -> tuple[Any, Any]:
+        """Remove and return the last (key, value), computed."""
+        self._resolved()
+        return dict.popitem(self)
+
+    def setdefault(self, key: Any, default: Any = None) -> Any:
+        """``d[key]`` (computed), or ``default`` stored under ``key``."""
+        return self[key] if key in self else dict.setdefault(self, key, default)
+
+    def __iter__(self) -> Iterator[Any]:  # defined so that dict(d) and {**d} read through []
+        return dict.__iter__(self)
+
+    def items(self) -> Any:
+        """The (key, value) pairs, every value computed."""
+        self._resolved()
+        return dict.items(self)
+
+    def values(self) -> Any:
+        """The values, every one computed."""
+        self._resolved()
+        return dict.values(self)
+
+    def copy(self) -> dict[Any, Any]:
+        """A plain ``dict`` of the computed values."""
+        self._resolved()
+        return dict(dict.items(self))
+
+    def __eq__(self, other: object) -> bool:
+        self._resolved()
+        if isinstance(other, LazyDict):
+            other._resolved()
+        return dict.__eq__(self, other)
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __repr__(self) -> str:
+        self._resolved()
+        return dict.__repr__(self)
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (dict, (self.copy(),))
+
+    def __reduce_ex__(self, protocol: Any) -> tuple[Any, ...]:
+        return self.__reduce__()
