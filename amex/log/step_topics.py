@@ -12,13 +12,14 @@ as null on a slow path); ``/method`` by :class:`amex.log.method_topic.MethodTopi
 from __future__ import annotations
 
 import math
+import struct
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import foxglove
 import numpy as np
 from foxglove.messages import JointState, JointStates, Timestamp
 
-from amex.log import messages as M
+from amex.log import flat_proto as P
 from amex.log.constants import LogConstants
 from amex.log.method_topic import MethodTopic
 from amex.log.wire import encode_step
@@ -70,8 +71,11 @@ def capture(step: StepRecord) -> Captured:
     )
 
 
-_TCP_FIELDS = [("t", 0), ("position", 3), ("axis", 3), ("velocity", 3), ("distance_to_goal", 0)]
-_GOAL_FIELDS = [("t", 0), ("position", 3), ("distance", 0)]
+# /tcp and /goal: every field, in field-number order (amex.log.flat_proto's TCP and GOAL)
+_TCP = struct.Struct("<1sd2s3d2s3d2s3d1sd")
+_GOAL = struct.Struct("<1sd2s3d1sd")
+# /command: the keys of y*, y_dot*, q*, q_dot* (fields 2-5, packed doubles); t is field 1
+_COMMAND_FIELDS = (b"\x12", b"\x1a", b"\x22", b"\x2a")
 
 
 class StepTopics:
@@ -97,10 +101,7 @@ class StepTopics:
         self._joint_states = self._channels["/joint_states"]
         encoding = constants.encoding
         self._buffer = np.empty(encoding.size if encoding else 0, dtype=np.uint8)
-        self._tcp_json = M.json_template(_TCP_FIELDS)
-        self._goal_json = M.json_template(_GOAL_FIELDS)
-        self._numbers_json: dict[tuple[bool, ...], str] = {}  # /tcp, /goal, /command in one
-        self._command_json: dict[tuple[bool, ...], str] = {}
+        self._command_encodings: dict[tuple[int, ...], Any] = {}  # by the parts' sizes
         self._method = MethodTopic()  # /method's schema, at the first step
         self.method_channel: foxglove.Channel | None = None
 
@@ -162,29 +163,26 @@ class StepTopics:
         command: Any,
         ns: int,
     ) -> None:
-        """``/tcp``, ``/goal`` and ``/command``, formatted by one %-template."""
-        values = [t, *y, *yd[:3], distance, t, *goal, distance, t]
-        present = []
-        for part in command:
-            present.append(part is not None)
-            if part is not None:
-                values += part.tolist()
-        key = tuple(present)
-        template = self._numbers_json.get(key)
-        if template is None:
-            command_json = self._command_template(command)
-            template = "\n".join((self._tcp_json, self._goal_json, command_json))
-            self._numbers_json[key] = template
-        if not math.isfinite(sum(values)):  # NaN/inf is not JSON: null (slow path, rare)
-            self._log_numbers("/tcp", self._tcp_json, (t, *y, *yd[:3], distance), ns)
-            self._log_numbers("/goal", self._goal_json, (t, *goal, distance), ns)
-            self._log_command(t, command, ns)
-            return
-        tcp, goal_text, command_text = (template % tuple(values)).encode().split(b"\n")
+        """``/tcp``, ``/goal`` and ``/command``: every field, packed (:mod:`amex.log.flat_proto`)."""
         channels = self._channels
-        channels["/tcp"].log(tcp, ns)
-        channels["/goal"].log(goal_text, ns)
-        channels["/command"].log(command_text, ns)
+        channels["/tcp"].log(
+            _TCP.pack(b"\x09", t, b"\x12\x18", *y[:3], b"\x1a\x18", *y[3:6], b"\x22\x18", *yd[:3],
+                      b"\x29", distance),
+            ns,
+        )  # fmt: skip
+        channels["/goal"].log(_GOAL.pack(b"\x09", t, b"\x12\x18", *goal, b"\x19", distance), ns)
+        parts = [None if part is None else part.tolist() for part in command]
+        key = tuple(-1 if part is None else len(part) for part in parts)
+        encoding = self._command_encodings.get(key)
+        if encoding is None:
+            encoding = self._command_encodings[key] = _command_encoding(key)
+        packer, prefixes = encoding
+        args: list[Any] = [b"\x09", t]
+        for prefix, part in zip(prefixes, parts, strict=False):
+            if part is not None:
+                args.append(prefix)
+                args += part
+        channels["/command"].log(packer.pack(*args), ns)
 
     def _log_method(self, t: float, internals: Any, ns: int) -> None:
         """``/method``: the numbers, flags, texts and small number arrays of ``internals()``.
@@ -194,34 +192,13 @@ class StepTopics:
         """
         method = self._method
         if method.kinds is None:
-            schema = method.schema(t, internals)
-            self.method_channel = foxglove.Channel("/method", schema=schema, context=self._context)
+            self.method_channel = method.schema(t, internals).channel("/method", self._context)
             self._channels["/method"] = self.method_channel.base
         self._channels["/method"].log(method.encode(t, internals), ns)
 
-    def _command_template(self, command: Any) -> str:
-        """The %-template of ``/command`` for the parts ``command`` has (made at the first one)."""
-        present = tuple(part is not None for part in command)
-        template = self._command_json.get(present)
-        if template is None:
-            names = ("y_star", "yd_star", "q_star", "qd_star")
-            fields = [("t", 0)]
-            fields += [(k, len(p)) for k, p in zip(names, command, strict=False) if p is not None]
-            template = self._command_json[present] = M.json_template(fields)
-        return template
 
-    def _log_command(self, t: float, command: Any, ns: int) -> None:
-        """y*, y_dot* (and q*, q_dot*): whichever parts the command has."""
-        parts = [p.tolist() for p in command if p is not None]
-        template = self._command_template(command)
-        self._log_numbers("/command", template, (t, *(x for p in parts for x in p)), ns)
-
-    def _log_numbers(self, topic: str, template: str, values: tuple[float, ...], ns: int) -> None:
-        if math.isfinite(sum(values)):
-            data = (template % values).encode()
-        else:  # NaN/inf is not JSON: null instead (slow path, rare)
-            data = (
-                template.replace(M.NUM, "%s")
-                % tuple(repr(v) if math.isfinite(v) else "null" for v in values)
-            ).encode()
-        self._channels[topic].log(data, ns)
+def _command_encoding(sizes: tuple[int, ...]) -> tuple[struct.Struct, list[bytes]]:
+    """The packer of ``/command`` for parts of ``sizes`` (-1: absent) and each part's key."""
+    prefixes = [key + P.varint(8 * n) if n >= 0 else b"" for key, n in zip(_COMMAND_FIELDS, sizes)]
+    layout = "".join(f"{len(p)}s{n}d" for p, n in zip(prefixes, sizes, strict=False) if n >= 0)
+    return struct.Struct("<1sd" + layout), prefixes

@@ -75,6 +75,7 @@ from foxglove.messages import FrameTransforms, JointStates
 
 from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
+from amex.log import flat_proto as P
 from amex.log import messages as M
 from amex.log.constants import log_constants
 from amex.log.files import WriteFailures, failure_cause, set_aside
@@ -174,12 +175,15 @@ class EpisodeLogger:
             method=str(metadata.get("method", "")),
             max_line_points=max(2, int(max_line_points)),
         )
+        self._numbers = {  # amex's own protobuf messages (amex.log.flat_proto)
+            topic: schema.channel(topic, ctx)
+            for topic, schema in (("/tcp", P.TCP), ("/goal", P.GOAL), ("/command", P.COMMAND))
+        }
         self._json = {
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
-            for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
+            for topic, schema in M.json_schemas(np.shape(plan.y)[1]).items()
         }
-        step_channels = {"/tf": self._tf, "/joint_states": self._joint_states}
-        step_channels.update((k, self._json[k]) for k in ("/tcp", "/goal", "/command"))
+        step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
         self._topics = StepTopics(ctx, self._constants, step_channels)
         self._pending: list[Captured] = []  # steps kept, not yet written (BATCH)
         self._previous_handler: Any = None
@@ -254,6 +258,7 @@ class EpisodeLogger:
             self._tf,
             self._joint_states,
             *self._scene.channels(),
+            *self._numbers.values(),
             *self._json.values(),
             *([method] if method is not None else []),
         ]
