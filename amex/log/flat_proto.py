@@ -105,9 +105,11 @@ def descriptor_set(full_name: str, fields: Sequence[tuple[str, str]]) -> bytes:
 
 
 def field_names(keys: Sequence[str], reserved: Sequence[str] = ()) -> list[str]:
-    """Protobuf field names for ``keys``: each key itself if it is an identifier, else the key
-    with every other character replaced by ``_`` (and ``_`` before a leading digit), made
-    unique by a suffix; ``reserved`` names are never given (e.g. ``t``)."""
+    """Protobuf field names for ``keys``, unique, none of ``reserved`` (e.g. ``t``).
+
+    Each key itself if it is an identifier, else the key with every other character replaced by
+    ``_`` (and ``_`` before a leading digit); a name taken already gets a suffix ``_2``, ...
+    """
     taken = set(reserved)
     names = []
     for key in keys:
@@ -187,4 +189,9 @@ class FlatDecoder:
         return out
 
 
-_KIND_OF_TYPE = {(1, False): "double", (1, True): "doubles", (8, False): "bool", (9, False): "string"}
+_KIND_OF_TYPE = {  # (FieldDescriptorProto.Type, repeated) -> kind
+    (1, False): "double",
+    (1, True): "doubles",
+    (8, False): "bool",
+    (9, False): "string",
+}

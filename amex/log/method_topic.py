@@ -69,7 +69,8 @@ class MethodTopic:
                 kinds[key] = kind
         keys = [k for k in kinds if k != "t"]
         names = P.field_names(keys, reserved=("t",))
-        fields = [("t", "double")] + [(n, _PROTO_KIND[kinds[k]]) for k, n in zip(keys, names)]
+        fields = [("t", "double")]
+        fields += [(n, _PROTO_KIND[kinds[k]]) for k, n in zip(keys, names, strict=True)]
         self._keys = {
             k: P.tag(number, _PROTO_KIND[kinds[k]]) for number, k in enumerate(keys, start=2)
         }
@@ -84,7 +85,7 @@ class MethodTopic:
         except KeyError:
             recipe = self._recipes[signature] = self._recipe(*signature)
         parts = [b"\x09" + P.DOUBLE.pack(t)]
-        parts += [convert(value) for convert, value in zip(recipe, internals.values())]
+        parts += [convert(value) for convert, value in zip(recipe, internals.values(), strict=True)]
         return b"".join(parts)
 
     def reference_encode(self, t: float, internals: dict[str, Any]) -> bytes:

@@ -365,7 +365,5 @@ def topics_with_numbers(data: LogData) -> Iterable[str]:
     """The JSON and amex protobuf topics of ``data`` whose messages are objects (tables)."""
     for topic, info in sorted(data.channels.items()):
         ours = info.message_encoding == "json" or info.schema_name.startswith("amex.")
-        if ours and any(
-            isinstance(m.data, dict) for m in data.messages[topic]
-        ):
+        if ours and any(isinstance(m.data, dict) for m in data.messages[topic]):
             yield topic

@@ -163,7 +163,7 @@ class StepTopics:
         command: Any,
         ns: int,
     ) -> None:
-        """``/tcp``, ``/goal`` and ``/command``: every field, packed (:mod:`amex.log.flat_proto`)."""
+        """``/tcp``, ``/goal`` and ``/command``: every field (:mod:`amex.log.flat_proto`)."""
         channels = self._channels
         channels["/tcp"].log(
             _TCP.pack(b"\x09", t, b"\x12\x18", *y[:3], b"\x1a\x18", *y[3:6], b"\x22\x18", *yd[:3],
@@ -199,6 +199,7 @@ class StepTopics:
 
 def _command_encoding(sizes: tuple[int, ...]) -> tuple[struct.Struct, list[bytes]]:
     """The packer of ``/command`` for parts of ``sizes`` (-1: absent) and each part's key."""
-    prefixes = [key + P.varint(8 * n) if n >= 0 else b"" for key, n in zip(_COMMAND_FIELDS, sizes)]
+    keys = zip(_COMMAND_FIELDS, sizes, strict=False)  # a command has 2 or 4 parts
+    prefixes = [key + P.varint(8 * n) if n >= 0 else b"" for key, n in keys]
     layout = "".join(f"{len(p)}s{n}d" for p, n in zip(prefixes, sizes, strict=False) if n >= 0)
     return struct.Struct("<1sd" + layout), prefixes

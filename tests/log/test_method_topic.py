@@ -80,7 +80,11 @@ def test_values_read_back_exactly_and_other_kinds_are_absent():
 
 def test_keys_that_are_no_identifiers_get_field_names_and_damage_is_refused():
     assert field_names(["a b", "a_b", "1x", "t", "ok"], reserved=("t",)) == [
-        "a_b", "a_b_2", "_1x", "t_2", "ok"
+        "a_b",
+        "a_b_2",
+        "_1x",
+        "t_2",
+        "ok",
     ]
     topic = MethodTopic()
     schema = topic.schema(0.0, {"a b": 1.0, "t": 5.0})
