@@ -77,12 +77,13 @@ from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
 from amex.log import flat_proto as P
 from amex.log import messages as M
+from amex.log.batch import StepBatch
 from amex.log.constants import log_constants
 from amex.log.files import WriteFailures, failure_cause, set_aside
 from amex.log.frames import WORLD_FRAME
 from amex.log.frames import LinkTransforms as LinkTransforms  # re-exported (tests, callers)
 from amex.log.scene import SceneChannels
-from amex.log.step_topics import Captured, StepTopics, capture
+from amex.log.step_topics import StepTopics
 from amex.log.wire import protobuf_channel
 
 if TYPE_CHECKING:
@@ -185,7 +186,9 @@ class EpisodeLogger:
         }
         step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
         self._topics = StepTopics(ctx, self._constants, step_channels)
-        self._pending: list[Captured] = []  # steps kept, not yet written (BATCH)
+        self._batch = StepBatch(  # steps kept, not yet written
+            BATCH, robot.nv, np.shape(plan.y)[1], self._constants.encoding
+        )
         self._previous_handler: Any = None
         self._install_sigterm()
         try:
@@ -338,24 +341,24 @@ class EpisodeLogger:
     def record(self, step: StepRecord) -> None:
         """Log one outer step (see the module docstring for what goes where).
 
-        The step is kept (:func:`~amex.log.step_topics.capture`) and written with the next
+        The step is kept (:meth:`~amex.log.batch.StepBatch.add`) and written with the next
         :data:`BATCH` - 1 steps, or at :meth:`finish` or :meth:`close` (module notes).
         """
         if self._closed:
             return
-        pending = self._pending
-        pending.append(capture(step))
-        if len(pending) >= BATCH:
+        batch = self._batch
+        batch.add(step)
+        if batch.count >= BATCH:
             self._flush()
 
     def _flush(self) -> None:
         """Write the kept steps, in order, every topic of a step before the next step's."""
-        pending, self._pending = self._pending, []
-        topics, scene, every = self._topics, self._scene, self._path_every
-        for step in pending:
-            t = step.t
-            tcp, plan = topics.record(step, round(t * 1e9))
-            scene.publish_world(t, step.goal, step.obstacles)
+        batch, scene, every = self._batch, self._scene, self._path_every
+        count, kept = batch.count, batch.kept
+        batch.clear()  # first: a SIGTERM's close() meanwhile writes none of them twice
+        steps = self._topics.write(batch, count, kept) if count else ()
+        for i, (t, tcp, plan) in enumerate(steps):
+            scene.publish_world(t, batch.goal[i], kept[i].obstacles)
             self._last_tcp = (tcp[0], tcp[1], tcp[2])
             if self._steps % every == 0:
                 scene.add_path_point(tcp[0], tcp[1], tcp[2])
