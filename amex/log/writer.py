@@ -346,8 +346,11 @@ class EpisodeLogger:
         """
         if self._closed:
             return
-        batch = self._batch
-        batch.add(step)
+        batch, internals = self._batch, step.internals
+        plan = (
+            internals.get("plan") if (self._steps + batch.count) % self._path_every == 0 else None
+        )
+        batch.add(step, self._topics.method_message(step.t, internals), plan)
         if batch.count >= BATCH:
             self._flush()
 
@@ -357,13 +360,13 @@ class EpisodeLogger:
         count, kept = batch.count, batch.kept
         batch.clear()  # first: a SIGTERM's close() meanwhile writes none of them twice
         steps = self._topics.write(batch, count, kept) if count else ()
-        for i, (t, tcp, plan) in enumerate(steps):
+        for i, (t, tcp) in enumerate(steps):
             scene.publish_world(t, batch.goal[i], kept[i].obstacles)
             self._last_tcp = (tcp[0], tcp[1], tcp[2])
             if self._steps % every == 0:
                 scene.add_path_point(tcp[0], tcp[1], tcp[2])
                 scene.publish_path(t)
-                scene.publish_plan(t, plan)
+                scene.publish_plan(t, kept[i].plan)
             if t >= scene.next_reference:
                 scene.publish_reference(t)
             self._steps += 1
