@@ -234,7 +234,7 @@ def export(args: argparse.Namespace) -> None:
     written = export_tables(data, out_dir, args.format)
     for topic, (bad, total) in undecodable(data).items():
         sys.stderr.write(
-            f"{PROG}: note: {bad} of {total} {topic} messages are no JSON object (damaged); "
+            f"{PROG}: note: {bad} of {total} {topic} messages could not be decoded (damaged); "
             "left out of its table\n"
         )
     if data.damage:

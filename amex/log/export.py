@@ -12,10 +12,10 @@ from amex.log.reader import LogData, topics_with_numbers
 
 
 def export_tables(data: LogData, out_dir: Path, fmt: str = "csv") -> list[Path]:
-    """Write each JSON topic, and the joint states, as a table (lists flattened: ``q_0``...).
+    """Write each JSON or amex protobuf topic, and the joint states, as a table (``q_0``...).
 
     Every file is new and written whole (:func:`amex.log.files.write_new`); if any of them
-    exists, nothing is written. Messages that are no JSON object are left out of their table:
+    exists, nothing is written. Messages that could not be decoded are left out of their table:
     :func:`undecodable` counts them. Returns the files written (tables, then ``metadata.json``).
     """
     import pandas as pd
@@ -45,7 +45,7 @@ def export_tables(data: LogData, out_dir: Path, fmt: str = "csv") -> list[Path]:
 
 
 def undecodable(data: LogData) -> dict[str, tuple[int, int]]:
-    """Per exported topic, ``(left out, messages)`` where messages are no JSON object."""
+    """Per exported topic, ``(left out, messages)`` where messages could not be decoded."""
     counts = {}
     for topic in topics_with_numbers(data):
         messages = data.messages[topic]

@@ -1,7 +1,8 @@
-"""The logs' message helpers: JSON number templates and schemas, scene lines and spheres.
+"""The logs' message helpers: the JSON channels' schemas and texts, scene lines and spheres.
 
-The per-step JSON channels are formatted from %-templates (``"%.9g"`` numbers, about 0.4 us each
-here: ``json.dumps`` of the same floats costs 3x more); non-finite numbers become ``null``.
+The JSON channels are the ones written once (``/reference``, ``/episode``); the per-step ones are
+protobuf (:mod:`amex.log.flat_proto`). :func:`value_schema` still names the kinds of
+``/method``'s values (:mod:`amex.log.method_topic`).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from amex.core import palette
 from amex.log.frames import IDENTITY, WORLD_FRAME, vec
 from amex.sim.metrics import EpisodeResult
 
-NUM = "%.9g"  # JSON number format of the per-step channels (9 significant digits)
+NUM = "%.9g"  # JSON number format of /reference (9 significant digits)
 
 
 def color(hex_color: str, alpha: float = 1.0) -> Color:
@@ -52,28 +53,6 @@ def path_color(method: str) -> Color:
 def plan_color(method: str) -> Color:
     """The current plan of ``method``: its colour, lighter."""
     return color(palette.lighter(palette.method_color(method)))
-
-
-def json_template(fields: list[tuple[str, int]]) -> str:
-    """A %-format JSON object of numbers: ``[("t", 0), ("q", 7)]`` -> ``{"t":%g,"q":[%g,...]}``."""
-    parts = []
-    for key, n in fields:
-        value = NUM if n == 0 else "[" + ",".join([NUM] * n) + "]"
-        parts.append(f'"{key}":{value}')
-    return "{" + ",".join(parts) + "}"
-
-
-def number_schema(title: str, fields: dict[str, int | str]) -> dict[str, Any]:
-    """A JSON schema of an object of numbers (0) and number arrays (length n); str: a type."""
-    props: dict[str, Any] = {}
-    for key, n in fields.items():
-        if isinstance(n, str):
-            props[key] = {"type": n}
-        elif n == 0:
-            props[key] = {"type": "number"}
-        else:
-            props[key] = number_array(n)
-    return {"title": title, "type": "object", "properties": props}
 
 
 def number_array(n: int | None = None) -> dict[str, Any]:
@@ -155,24 +134,12 @@ def reference_json(y: np.ndarray, dt: float, duration: float) -> bytes:
     return text.encode()
 
 
-def json_schemas(n: int, m: int = 6) -> dict[str, dict[str, Any]]:
-    """The JSON channels and their schemas (``n`` joints, task space of ``m``), but ``/method``.
+def json_schemas(m: int = 6) -> dict[str, dict[str, Any]]:
+    """The JSON channels and their schemas (task space of ``m``): ``/reference``, ``/episode``.
 
-    ``/method`` carries whatever the method's ``internals()`` gives; its schema is made from the
-    first step's values (:func:`object_schema`).
+    The per-step channels are protobuf (:mod:`amex.log.flat_proto`, :mod:`amex.log.method_topic`).
     """
-    return {
-        "/tcp": number_schema(
-            "amex.Tcp",
-            {"t": 0, "position": 3, "axis": 3, "velocity": 3, "distance_to_goal": 0},
-        ),
-        "/goal": number_schema("amex.Goal", {"t": 0, "position": 3, "distance": 0}),
-        "/command": number_schema(
-            "amex.Command", {"t": 0, "y_star": m, "yd_star": m, "q_star": n, "qd_star": n}
-        ),
-        "/reference": reference_schema(m),
-        "/episode": episode_schema(),
-    }
+    return {"/reference": reference_schema(m), "/episode": episode_schema()}
 
 
 def viewer_schema_problems(schema: Any, where: str = "schema") -> list[str]:

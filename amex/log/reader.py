@@ -16,9 +16,11 @@ chunk's CRC on its own. Either way it tells two cases apart:
 Short reads raise instead of being passed on, so a cut record is never returned as a shorter one.
 :func:`amex.log.recover.recover` writes what was read as a new, indexed MCAP file.
 
-JSON channels are decoded when read; protobuf channels (the Foxglove schemas) stay bytes until
-:meth:`LogData.decoded` decodes them with their own schema (:mod:`amex.log.protobuf`, no protobuf
-package needed); :meth:`LogData.joints` gives the joint states as arrays.
+JSON channels and amex's own protobuf channels (``amex.*`` schemas: ``/tcp``, ``/goal``,
+``/command``, ``/method``; :mod:`amex.log.flat_proto`) are decoded when read, into dicts with
+every field of the schema (None where a message has none); the Foxglove schemas' channels stay
+bytes until :meth:`LogData.decoded` decodes them with their own schema (:mod:`amex.log.protobuf`,
+no protobuf package needed); :meth:`LogData.joints` gives the joint states as arrays.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from amex.core.errors import (
     NotMcapError,
     TruncatedLogError,
 )
+from amex.log.flat_proto import FlatDecoder
 from amex.log.protobuf import ProtobufSchema
 from amex.log.records import MCAP_MAGIC, IndexedEnd, RawLog, read_indexed, read_stream
 
@@ -144,6 +147,8 @@ class LogData:
         info = self.channels.get(topic)
         if info is None or info.message_encoding != "protobuf" or self._raw is None:
             return messages
+        if info.schema_name.startswith("amex."):
+            return messages  # amex's own messages: decoded when read
         if topic not in self._decoded:
             schema = next(
                 (
@@ -249,12 +254,16 @@ def _decode(
 ) -> LogData:
     raw.messages.sort(key=lambda m: (m.log_time, m.channel_id, m.sequence))
     by_topic: dict[str, list[LogMessage]] = {c.topic: [] for c in raw.channels.values()}
+    flat = {cid: _flat_decoder(raw, c) for cid, c in raw.channels.items()}
     for message in raw.messages:
         channel = raw.channels[message.channel_id]
         data: Any = message.data
         if channel.message_encoding == "json":
             with contextlib.suppress(ValueError):  # invalid JSON stays bytes
                 data = json.loads(data)
+        elif (decoder := flat[message.channel_id]) is not None:
+            with contextlib.suppress(ValueError, IndexError):  # a damaged message stays bytes
+                data = decoder.decode(data)
         by_topic[channel.topic].append(LogMessage(message.log_time, data))
     channels = {}
     for channel in raw.channels.values():
@@ -271,6 +280,19 @@ def _decode(
             {k: _parse(v) for k, v in record.metadata.items()}
         )
     return LogData(path, size, channels, by_topic, metadata, truncated, note, corrupt, raw)
+
+
+def _flat_decoder(raw: RawLog, channel: Any) -> FlatDecoder | None:
+    """The decoder of an amex protobuf channel (``amex.*`` schemas, :mod:`amex.log.flat_proto`)."""
+    schema = raw.schemas.get(channel.schema_id)
+    if channel.message_encoding != "protobuf" or schema is None or schema.encoding != "protobuf":
+        return None
+    if not schema.name.startswith("amex."):
+        return None  # Foxglove's schemas: decoded on request (LogData.decoded)
+    try:
+        return FlatDecoder(schema.data, schema.name)
+    except (ValueError, IndexError, struct.error, UnicodeDecodeError):
+        return None  # a damaged schema: the messages stay bytes
 
 
 def _parse(text: str) -> Any:
@@ -340,9 +362,8 @@ def _damaged(raw: RawLog, end: IndexedEnd, path: Path, size: int) -> LogData:
 
 
 def topics_with_numbers(data: LogData) -> Iterable[str]:
-    """The JSON topics of ``data`` whose messages are objects (exportable as tables)."""
+    """The JSON and amex protobuf topics of ``data`` whose messages are objects (tables)."""
     for topic, info in sorted(data.channels.items()):
-        if info.message_encoding == "json" and any(
-            isinstance(m.data, dict) for m in data.messages[topic]
-        ):
+        ours = info.message_encoding == "json" or info.schema_name.startswith("amex.")
+        if ours and any(isinstance(m.data, dict) for m in data.messages[topic]):
             yield topic

@@ -236,3 +236,48 @@ def encode_step(
         i = _double(out, i, 0x29, tau[j], scratch)
         start = end
     return tf_end, i
+
+
+@numba.njit(cache=True)
+def encode_steps(
+    ns: np.ndarray,
+    q: np.ndarray,
+    v: np.ndarray,
+    qacc: np.ndarray,
+    tau: np.ndarray,
+    blocks: np.ndarray,
+    ends: np.ndarray,
+    joint_index: np.ndarray,
+    rotation: np.ndarray,
+    out: np.ndarray,
+    bounds: np.ndarray,
+) -> int:
+    """:func:`encode_step` for each row of a batch, one message after the other in ``out``.
+
+    Args:
+        ns: the steps' times [ns], shape (rows,).
+        q: the steps' joint positions, shape (rows, n) [rad].
+        v: their velocities, shape (rows, n) [rad/s].
+        qacc: their accelerations, shape (rows, n) [rad/s^2].
+        tau: their torques, shape (rows, n) [N m].
+        blocks: :attr:`StepEncoding.blocks`.
+        ends: :attr:`StepEncoding.ends`.
+        joint_index: :attr:`StepEncoding.joint_index`.
+        rotation: :attr:`StepEncoding.rotation`.
+        out: the buffer, at least ``rows * StepEncoding.size`` bytes.
+        bounds: set to, per row, where its ``/tf`` message starts, where it ends (and the
+            ``/joint_states`` message starts) and where that ends in ``out``, shape (rows, 3).
+
+    Returns:
+        The bytes written.
+    """
+    i = 0
+    for r in range(len(ns)):
+        a, b = encode_step(
+            ns[r], q[r], v[r], qacc[r], tau[r], blocks, ends, joint_index, rotation, out[i:]
+        )
+        bounds[r, 0] = i
+        bounds[r, 1] = i + a
+        bounds[r, 2] = i + b
+        i += b
+    return i

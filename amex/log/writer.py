@@ -75,13 +75,15 @@ from foxglove.messages import FrameTransforms, JointStates
 
 from amex.core.errors import LogError, LogExistsError, WriteError
 from amex.core.version import __version__
+from amex.log import flat_proto as P
 from amex.log import messages as M
+from amex.log.batch import StepBatch
 from amex.log.constants import log_constants
 from amex.log.files import WriteFailures, failure_cause, set_aside
 from amex.log.frames import WORLD_FRAME
 from amex.log.frames import LinkTransforms as LinkTransforms  # re-exported (tests, callers)
 from amex.log.scene import SceneChannels
-from amex.log.step_topics import Captured, StepTopics, capture
+from amex.log.step_topics import StepTopics
 from amex.log.wire import protobuf_channel
 
 if TYPE_CHECKING:
@@ -174,14 +176,19 @@ class EpisodeLogger:
             method=str(metadata.get("method", "")),
             max_line_points=max(2, int(max_line_points)),
         )
+        self._numbers = {  # amex's own protobuf messages (amex.log.flat_proto)
+            topic: schema.channel(topic, ctx)
+            for topic, schema in (("/tcp", P.TCP), ("/goal", P.GOAL), ("/command", P.COMMAND))
+        }
         self._json = {
             topic: foxglove.Channel(topic, schema=schema, context=ctx)
-            for topic, schema in M.json_schemas(robot.nv, np.shape(plan.y)[1]).items()
+            for topic, schema in M.json_schemas(np.shape(plan.y)[1]).items()
         }
-        step_channels = {"/tf": self._tf, "/joint_states": self._joint_states}
-        step_channels.update((k, self._json[k]) for k in ("/tcp", "/goal", "/command"))
+        step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
         self._topics = StepTopics(ctx, self._constants, step_channels)
-        self._pending: list[Captured] = []  # steps kept, not yet written (BATCH)
+        self._batch = StepBatch(  # steps kept, not yet written
+            BATCH, robot.nv, np.shape(plan.y)[1], self._constants.encoding
+        )
         self._previous_handler: Any = None
         self._install_sigterm()
         try:
@@ -254,6 +261,7 @@ class EpisodeLogger:
             self._tf,
             self._joint_states,
             *self._scene.channels(),
+            *self._numbers.values(),
             *self._json.values(),
             *([method] if method is not None else []),
         ]
@@ -333,29 +341,32 @@ class EpisodeLogger:
     def record(self, step: StepRecord) -> None:
         """Log one outer step (see the module docstring for what goes where).
 
-        The step is kept (:func:`~amex.log.step_topics.capture`) and written with the next
+        The step is kept (:meth:`~amex.log.batch.StepBatch.add`) and written with the next
         :data:`BATCH` - 1 steps, or at :meth:`finish` or :meth:`close` (module notes).
         """
         if self._closed:
             return
-        pending = self._pending
-        pending.append(capture(step))
-        if len(pending) >= BATCH:
+        batch, internals = self._batch, step.internals
+        plan = (
+            internals.get("plan") if (self._steps + batch.count) % self._path_every == 0 else None
+        )
+        batch.add(step, self._topics.method_message(step.t, internals), plan)
+        if batch.count >= BATCH:
             self._flush()
 
     def _flush(self) -> None:
         """Write the kept steps, in order, every topic of a step before the next step's."""
-        pending, self._pending = self._pending, []
-        topics, scene, every = self._topics, self._scene, self._path_every
-        for step in pending:
-            t = step.t
-            tcp, plan = topics.record(step, round(t * 1e9))
-            scene.publish_world(t, step.goal, step.obstacles)
+        batch, scene, every = self._batch, self._scene, self._path_every
+        count, kept = batch.count, batch.kept
+        batch.clear()  # first: a SIGTERM's close() meanwhile writes none of them twice
+        steps = self._topics.write(batch, count, kept) if count else ()
+        for i, (t, tcp) in enumerate(steps):
+            scene.publish_world(t, batch.goal[i], kept[i].obstacles)
             self._last_tcp = (tcp[0], tcp[1], tcp[2])
             if self._steps % every == 0:
                 scene.add_path_point(tcp[0], tcp[1], tcp[2])
                 scene.publish_path(t)
-                scene.publish_plan(t, plan)
+                scene.publish_plan(t, kept[i].plan)
             if t >= scene.next_reference:
                 scene.publish_reference(t)
             self._steps += 1

@@ -214,4 +214,4 @@ def test_export_says_which_messages_it_left_out(log_file, tmp_path, capsys):
 
     path = _rewritten(log_file, tmp_path / "bad_json.mcap", damage)
     code, out, err = _run(["export", path, "-o", tmp_path / "tables"], capsys)
-    assert code == 0 and "2 of" in err and "/tcp messages are no JSON object" in err
+    assert code == 0 and "2 of" in err and "/tcp messages could not be decoded" in err

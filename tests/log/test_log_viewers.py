@@ -1,4 +1,5 @@
-"""Logs for browser viewers: the JSON schemas' rule, the served robot, the server, the layout.
+"""Logs for browser viewers: the JSON schemas' rule, the per-step protobuf channels, the served
+robot, the server, the layout.
 
 Real episodes of every built-in method are logged (0.5 s of Task 4, which has a moving obstacle);
 the browser itself is exercised by ``tests/test_viewer_browser.py`` (``make test-viewer``).
@@ -95,11 +96,39 @@ def _undeclared(value, schema, where):
 def test_every_json_channel_follows_the_viewers_schema_rule_and_declares_every_field(logs, method):
     data = read_log(logs[method])
     schemas = dict(_json_schemas(logs[method]))
-    assert {"/tcp", "/goal", "/command", "/method", "/reference", "/episode"} <= set(schemas)
+    assert {"/reference", "/episode"} <= set(schemas)
     for topic, schema in schemas.items():
         assert viewer_schema_problems(schema, topic) == []
         for message in data.messages[topic]:
             assert _undeclared(message.data, schema, topic) == []
+
+
+@pytest.mark.parametrize("method", sorted(BUILTIN_METHODS))
+def test_every_per_step_channel_is_amex_protobuf_read_back_field_by_field(logs, method):
+    from mcap.reader import make_reader
+
+    from amex.log.flat_proto import FlatDecoder
+
+    data = read_log(logs[method])
+    with open(logs[method], "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    for topic in ("/tcp", "/goal", "/command", "/method"):
+        schema = topics[topic]
+        assert schema.encoding == "protobuf" and schema.name.startswith("amex.")
+        decoder = FlatDecoder(schema.data, schema.name)  # the schema parses, its fields are flat
+        messages = data.messages[topic]
+        assert messages and all(isinstance(m.data, dict) for m in messages)
+        assert all(list(m.data) == list(messages[0].data) for m in messages)
+        assert messages[0].data == decoder.decode(_first_message(logs[method], topic))
+        assert all(round(m.data["t"] * 1e9) == m.log_time for m in messages)
+
+
+def _first_message(path, topic):
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        return next(m for _, c, m in make_reader(f).iter_messages(topics=[topic])).data
 
 
 def test_viewer_rule_rejects_what_foxglove_rejects():

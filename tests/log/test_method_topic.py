@@ -1,11 +1,11 @@
-"""``/method`` messages: the per-signature recipe against the dict path (the oracle)."""
+"""``/method`` messages: the per-signature recipe against the general rule (the oracle)."""
 
-import json
 import math
 
 import numpy as np
+import pytest
 
-from amex.log import messages as M
+from amex.log.flat_proto import FlatDecoder, descriptor_set, field_names
 from amex.log.method_topic import MethodTopic
 
 
@@ -44,24 +44,55 @@ def _variants(rng):
     yield {}
 
 
-def test_the_recipe_gives_the_dict_paths_bytes_for_every_kind_of_value():
+def test_the_recipe_gives_the_general_rules_bytes_for_every_kind_of_value():
     rng = np.random.default_rng(0)
     topic = MethodTopic()
     schema = topic.schema(0.0, _first())
-    assert M.viewer_schema_problems(schema) == []
     assert set(topic.kinds) == {"t", "s", "delta_g", "steps", "iters", "converged", "mode",
                                 "y_star", "maybe"} - {"maybe"}  # fmt: skip
+    decoder = FlatDecoder(schema.descriptor_set(), schema.name)
     for rep in range(3):  # recipes are cached: the second pass reuses them
         for k, internals in enumerate(_variants(rng)):
             t = 0.01 * k + rep
             fast = topic.encode(t, internals)
             assert fast == topic.reference_encode(t, internals), internals
-            json.loads(fast)  # strict JSON (no NaN)
+            assert decoder.decode(fast)["t"] == t
     assert topic.encode(math.nan, {"s": 1.0}) == topic.reference_encode(math.nan, {"s": 1.0})
 
 
-def test_numbers_keep_their_full_precision_and_non_finite_ones_become_null():
+def test_values_read_back_exactly_and_other_kinds_are_absent():
     topic = MethodTopic()
-    topic.schema(0.0, {"x": 0.1, "v": np.zeros(2)})
-    message = json.loads(topic.encode(1.0, {"x": 1 / 3, "v": np.array([math.nan, 2.0])}))
-    assert message == {"t": 1.0, "x": 1 / 3, "v": [None, 2.0]}
+    schema = topic.schema(0.0, _first())
+    decoder = FlatDecoder(schema.descriptor_set(), schema.name)
+    read = decoder.decode(topic.encode(1.5, {**_first(), "s": 1 / 3, "steps": 2.5, "iters": 4}))
+    assert read == {"t": 1.5, "s": 1 / 3, "delta_g": 0.5, "steps": 2.5, "iters": 4.0,
+                    "converged": True, "mode": "shrink", "y_star": [0.1, 0.2, 0.3]}  # fmt: skip
+    odd = {"s": math.nan, "delta_g": math.inf, "converged": "yes", "mode": 3.0,
+           "y_star": np.array([True, False]), "steps": None, "iters": np.zeros(70)}  # fmt: skip
+    read = decoder.decode(topic.encode(2.0, odd))
+    assert math.isnan(read["s"]) and read["delta_g"] == math.inf  # exact, not null
+    assert read["converged"] is read["mode"] is read["y_star"] is None
+    assert read["steps"] is read["iters"] is None
+    assert decoder.decode(topic.encode(3.0, {"y_star": np.arange(3)}))["y_star"] == [0, 1, 2]
+    assert decoder.decode(topic.encode(3.0, {"y_star": np.zeros(0)}))["y_star"] == []
+    assert decoder.decode(topic.encode(3.0, {"mode": 'quo"te ünï'}))["mode"] == 'quo"te ünï'
+
+
+def test_keys_that_are_no_identifiers_get_field_names_and_damage_is_refused():
+    assert field_names(["a b", "a_b", "1x", "t", "ok"], reserved=("t",)) == [
+        "a_b",
+        "a_b_2",
+        "_1x",
+        "t_2",
+        "ok",
+    ]
+    topic = MethodTopic()
+    schema = topic.schema(0.0, {"a b": 1.0, "t": 5.0})
+    assert [name for name, _ in schema.fields] == ["t", "a_b"]
+    decoder = FlatDecoder(schema.descriptor_set(), schema.name)
+    assert decoder.decode(topic.encode(1.0, {"a b": 2.0, "t": 5.0})) == {"t": 1.0, "a_b": 2.0}
+    for damaged in (b"{not json", b"\x09\x00\x00", b"\x1a\x08" + bytes(8), b"\x12\x03abc"):
+        with pytest.raises((ValueError, IndexError)):
+            decoder.decode(damaged)
+    with pytest.raises(ValueError, match="invalid protobuf field name"):
+        descriptor_set("amex.X", [("a b", "double")])

@@ -1,0 +1,267 @@
+"""The outer steps a log keeps until it writes them: numbers in rows, encoded a batch at a time.
+
+:class:`StepBatch` copies what the log needs of each step (:meth:`StepBatch.add`) into
+preallocated rows (time, q, q_dot, q_ddot, tau, y, y_dot, goal) and keeps the rest (obstacles,
+command, internals) as the step gave them, copied where the loop or the method may reuse a
+buffer. :meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
+(:func:`amex.log.wire.encode_steps`) and ``/tcp`` and ``/goal`` (:func:`encode_numbers`) in two
+compiled calls: the per-step Python is left with the SDK's writes (issue #29: one compiled call
+per message and step cost ~2 us of dispatch each).
+
+``/tcp`` and ``/goal`` are messages of :data:`amex.log.flat_proto.TCP` and ``GOAL``, every field
+written in field-number order: ``t``, the TCP position ``y[:3]``, its z-axis ``y[3:6]``, its
+velocity ``y_dot[:3]`` and ``distance_to_goal``; ``t``, the goal position ``goal[:3]`` and
+``distance``, both distances ``sqrt(dx^2 + dy^2 + dz^2)`` of the same doubles.
+"""
+
+from __future__ import annotations
+
+import math
+import struct
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numba
+import numpy as np
+
+from amex.log.flat_proto import varint
+from amex.log.wire import StepEncoding, _double, _varint, encode_steps
+
+if TYPE_CHECKING:
+    from amex.sim.loop import StepRecord
+
+
+class Kept(NamedTuple):
+    """What a step keeps besides its rows (module notes)."""
+
+    obstacles: np.ndarray  # the observation's (a new array each step)
+    command: bytes | None  # the /command message of a command of another shape, else None
+    method: bytes  # the /method message
+    plan: np.ndarray | None  # a copy of internals()["plan"] where the scene draws it, else None
+
+
+class Encoded(NamedTuple):
+    """A batch's messages: one buffer and, per row, where each message ends in it."""
+
+    data: bytes
+    joints: np.ndarray | None  # (rows, 3): /tf from [0] to [1], /joint_states to [2]; or None
+    numbers: np.ndarray  # (rows, 4): /tcp from [0] to [1], /goal to [2], /command to [3]
+
+
+class StepBatch:
+    """Up to ``capacity`` outer steps of ``n`` joints and an ``m``-dimensional task space.
+
+    Args:
+        capacity: rows (the logger's batch).
+        n: joint coordinates (q, q_dot, q_ddot, tau each).
+        m: task-space coordinates (y, y_dot each; the TCP's position and z-axis for m = 6).
+        encoding: the constant parts of ``/tf`` and ``/joint_states``, None if those are built
+            as the SDK's objects (then :attr:`Encoded.joints` is None).
+
+    Attributes:
+        count: the rows filled.
+        t, ns, q, v, qacc, tau, y, yd, goal: the rows (only the first :attr:`count` are valid).
+        kept: per row, its :class:`Kept`.
+    """
+
+    def __init__(self, capacity: int, n: int, m: int, encoding: StepEncoding | None) -> None:
+        self.count = 0
+        self.t = np.zeros(capacity)
+        self.ns = np.zeros(capacity, dtype=np.int64)
+        self.q, self.v, self.qacc, self.tau = (np.zeros((capacity, n)) for _ in range(4))
+        self.y, self.yd = np.zeros((capacity, m)), np.zeros((capacity, m))
+        self.goal = np.zeros((capacity, 3))
+        self._sizes = np.array([m, m, n, n], dtype=np.int64)  # y*, y_dot*, q*, q_dot*
+        self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).tolist()
+        self.command = np.zeros((capacity, 2 * (m + n)))
+        self.parts = np.zeros((capacity, 4), dtype=np.int64)  # 1: the part is there
+        self.kept: list[Kept] = []
+        self._packers: dict[tuple[int, ...], tuple[struct.Struct, list[bytes]]] = {}
+        self._encoding = encoding
+        self._joint_size = encoding.size if encoding is not None else 0
+        row = self._joint_size + _NUMBERS_SIZE + 8 * m + 9 + 4 * 12 + 8 * 2 * (m + n)
+        self._out = np.empty(capacity * row, np.uint8)
+        self._bounds = np.zeros((capacity, 3), dtype=np.int64)
+        self._number_bounds = np.zeros((capacity, 4), dtype=np.int64)
+
+    def __len__(self) -> int:
+        return self.count
+
+    def add(self, step: StepRecord, method: bytes, plan: np.ndarray | None) -> None:
+        """Copy ``step`` into the next row (the batch must not be full).
+
+        Args:
+            step: the outer step.
+            method: its ``/method`` message (:class:`amex.log.method_topic.MethodTopic`).
+            plan: its plan to draw (copied here), or None.
+        """
+        i = self.count
+        state, obs = step.state, step.observation
+        t = step.t
+        self.t[i] = t
+        self.ns[i] = round(t * 1e9)
+        self.q[i] = state.q
+        self.v[i] = state.v
+        self.qacc[i] = step.qacc  # the simulator's buffers: copied here
+        self.tau[i] = step.tau
+        self.y[i] = obs.y
+        self.yd[i] = obs.yd
+        self.goal[i] = obs.goal[:3]
+        command = None
+        parts, offsets, row = self.parts[i], self._offsets, self.command[i]
+        if len(step.command) <= 4:
+            parts[:] = 0
+            for j, part in enumerate(step.command):
+                if part is not None:
+                    if len(part) != offsets[j + 1] - offsets[j]:
+                        command = self._packed_command(t, step.command)
+                        break
+                    row[offsets[j] : offsets[j + 1]] = part
+                    parts[j] = 1
+        else:
+            command = self._packed_command(t, step.command)
+        if command is not None:
+            parts[:] = -1  # not in the rows: written from its kept message
+        copy = None if plan is None else np.array(plan, dtype=float)
+        self.kept.append(Kept(obs.obstacles, command, method, copy))
+        self.count = i + 1
+
+    def _packed_command(self, t: float, command: tuple[np.ndarray | None, ...]) -> bytes:
+        """``/command`` of a command of another shape than (m, m[, n, n]), packed here."""
+        values = [None if part is None else np.asarray(part, float).tolist() for part in command]
+        key = tuple(-1 if v is None else len(v) for v in values)
+        if key not in self._packers:
+            self._packers[key] = _command_packer(key)
+        packer, prefixes = self._packers[key]
+        args: list[Any] = [b"\x09", t]
+        for prefix, part in zip(prefixes, values, strict=True):
+            if part is not None:
+                args.append(prefix)
+                args += part
+        return packer.pack(*args)
+
+    def clear(self) -> None:
+        """Empty the batch: the next step goes into the first row (:attr:`kept` is a new list)."""
+        self.count = 0
+        self.kept = []
+
+    def encode(self, k: int) -> Encoded:
+        """The first ``k`` rows' ``/tf``, ``/joint_states``, ``/tcp`` and ``/goal`` messages."""
+        out = self._out
+        start = 0
+        joints = None
+        encoding = self._encoding
+        if encoding is not None:
+            joints = self._bounds[:k]
+            start = encode_steps(
+                self.ns[:k],
+                self.q[:k],
+                self.v[:k],
+                self.qacc[:k],
+                self.tau[:k],
+                encoding.blocks,
+                encoding.ends,
+                encoding.joint_index,
+                encoding.rotation,
+                out,
+                joints,
+            )
+        numbers = self._number_bounds[:k]
+        end = encode_numbers(
+            self.t[:k],
+            self.y[:k],
+            self.yd[:k],
+            self.goal[:k],
+            self.command[:k],
+            self.parts[:k],
+            self._sizes,
+            out[start:],
+            numbers,
+        )
+        numbers += start
+        return Encoded(out[: start + end].tobytes(), joints, numbers)
+
+
+# /tcp: t, 3 + 3 + 3 doubles, distance: 9 + 3 * (2 + 24) + 9; /goal: 9 + 26 + 9 bytes
+_NUMBERS_SIZE = 96 + 44
+
+
+@numba.njit(cache=True)
+def _packed(out: np.ndarray, i: int, tag: int, values: np.ndarray, scratch: np.ndarray) -> int:
+    """Field ``tag`` (< 16, wire type 2) holding ``values`` as packed doubles."""
+    out[i] = tag
+    i = _varint(out, i + 1, 8 * len(values))
+    raw = scratch.view(np.uint8)
+    for value in values:
+        scratch[0] = value
+        for b in range(8):
+            out[i + b] = raw[b]
+        i += 8
+    return i
+
+
+@numba.njit(cache=True)
+def encode_numbers(
+    t: np.ndarray,
+    y: np.ndarray,
+    yd: np.ndarray,
+    goal: np.ndarray,
+    command: np.ndarray,
+    parts: np.ndarray,
+    sizes: np.ndarray,
+    out: np.ndarray,
+    bounds: np.ndarray,
+) -> int:
+    """Each row's ``/tcp``, ``/goal`` and ``/command`` message, one after the other in ``out``.
+
+    Args:
+        t: the steps' times [s], shape (rows,).
+        y: the TCP's task state (position, z-axis), shape (rows, m) [m, -].
+        yd: its rate, shape (rows, m) [m/s, 1/s].
+        goal: the goal positions, shape (rows, 3) [m].
+        command: y*, y_dot*, q*, q_dot* one after the other, shape (rows, 2 m + 2 n).
+        parts: per row and part, 1 if the command has it, 0 if not; -1 in the first: no
+            ``/command`` here (the row's command has another shape), shape (rows, 4).
+        sizes: the parts' sizes (m, m, n, n).
+        out: the buffer (:class:`StepBatch` sizes it).
+        bounds: set to, per row, where its ``/tcp``, ``/goal`` and ``/command`` messages start
+            and where the last ends in ``out``, shape (rows, 4).
+
+    Returns:
+        The bytes written.
+    """
+    scratch = np.empty(1)
+    axis_end = min(y.shape[1], 6)
+    i = 0
+    for r in range(len(t)):
+        dx, dy, dz = y[r, 0] - goal[r, 0], y[r, 1] - goal[r, 1], y[r, 2] - goal[r, 2]
+        distance = math.sqrt(dx * dx + dy * dy + dz * dz)
+        bounds[r, 0] = i
+        i = _double(out, i, 0x09, t[r], scratch)
+        i = _packed(out, i, 0x12, y[r, :3], scratch)
+        i = _packed(out, i, 0x1A, y[r, 3:axis_end], scratch)
+        i = _packed(out, i, 0x22, yd[r, :3], scratch)
+        i = _double(out, i, 0x29, distance, scratch)
+        bounds[r, 1] = i
+        i = _double(out, i, 0x09, t[r], scratch)
+        i = _packed(out, i, 0x12, goal[r], scratch)
+        i = _double(out, i, 0x19, distance, scratch)
+        bounds[r, 2] = i
+        if parts[r, 0] >= 0:
+            i = _double(out, i, 0x09, t[r], scratch)
+            start = 0
+            for j in range(4):
+                end = start + sizes[j]
+                if parts[r, j] == 1:
+                    i = _packed(out, i, 0x12 + 8 * j, command[r, start:end], scratch)
+                start = end
+        bounds[r, 3] = i
+    return i
+
+
+def _command_packer(sizes: tuple[int, ...]) -> tuple[struct.Struct, list[bytes]]:
+    """The packer of ``/command`` for parts of ``sizes`` (-1: absent) and each part's key."""
+    prefixes = [
+        varint(j << 3 | 2) + varint(8 * n) if n >= 0 else b"" for j, n in enumerate(sizes, 2)
+    ]
+    layout = "".join(f"{len(p)}s{n}d" for p, n in zip(prefixes, sizes, strict=True) if n >= 0)
+    return struct.Struct("<1sd" + layout), prefixes
