@@ -114,7 +114,7 @@ def run_main() -> None:
                         raise
                     fail(str(e))
                 os.environ[LAUNCHER_PID] = str(os.getpid())  # sweep workers stop with this process
-                if single_run(checked.cfg):
+                if args is not None and single_run(checked.cfg):
                     run_composed(run_hydra, checked.cfg, args.config_name or "config", task)
                     return
                 if not single:

@@ -24,7 +24,7 @@ import numba
 import numpy as np
 
 from amex.log.flat_proto import varint
-from amex.log.wire import StepEncoding, _double, _varint, encode_steps
+from amex.log.wire import StepEncoding, double_field, encode_steps, varint_field
 
 if TYPE_CHECKING:
     from amex.sim.loop import StepRecord
@@ -189,7 +189,7 @@ _NUMBERS_SIZE = 96 + 44
 def _packed(out: np.ndarray, i: int, tag: int, values: np.ndarray, scratch: np.ndarray) -> int:
     """Field ``tag`` (< 16, wire type 2) holding ``values`` as packed doubles."""
     out[i] = tag
-    i = _varint(out, i + 1, 8 * len(values))
+    i = varint_field(out, i + 1, 8 * len(values))
     raw = scratch.view(np.uint8)
     for value in values:
         scratch[0] = value
@@ -236,18 +236,18 @@ def encode_numbers(
         dx, dy, dz = y[r, 0] - goal[r, 0], y[r, 1] - goal[r, 1], y[r, 2] - goal[r, 2]
         distance = math.sqrt(dx * dx + dy * dy + dz * dz)
         bounds[r, 0] = i
-        i = _double(out, i, 0x09, t[r], scratch)
+        i = double_field(out, i, 0x09, t[r], scratch)
         i = _packed(out, i, 0x12, y[r, :3], scratch)
         i = _packed(out, i, 0x1A, y[r, 3:axis_end], scratch)
         i = _packed(out, i, 0x22, yd[r, :3], scratch)
-        i = _double(out, i, 0x29, distance, scratch)
+        i = double_field(out, i, 0x29, distance, scratch)
         bounds[r, 1] = i
-        i = _double(out, i, 0x09, t[r], scratch)
+        i = double_field(out, i, 0x09, t[r], scratch)
         i = _packed(out, i, 0x12, goal[r], scratch)
-        i = _double(out, i, 0x19, distance, scratch)
+        i = double_field(out, i, 0x19, distance, scratch)
         bounds[r, 2] = i
         if parts[r, 0] >= 0:
-            i = _double(out, i, 0x09, t[r], scratch)
+            i = double_field(out, i, 0x09, t[r], scratch)
             start = 0
             for j in range(4):
                 end = start + sizes[j]

@@ -104,7 +104,8 @@ def protobuf_channel(topic: str, message: Any, context: foxglove.Context) -> fox
 
 
 @numba.njit(cache=True)
-def _varint(out: np.ndarray, i: int, value: int) -> int:
+def varint_field(out: np.ndarray, i: int, value: int) -> int:
+    """Write ``value`` as a protobuf varint into ``out`` at ``i``; the index after it."""
     while value >= 0x80:
         out[i] = (value & 0x7F) | 0x80
         value >>= 7
@@ -123,7 +124,7 @@ def _varint_size(value: int) -> int:
 
 
 @numba.njit(cache=True)
-def _double(out: np.ndarray, i: int, tag: int, value: float, scratch: np.ndarray) -> int:
+def double_field(out: np.ndarray, i: int, tag: int, value: float, scratch: np.ndarray) -> int:
     """Field ``tag`` (wire type 1) holding ``value``: the tag byte and 8 little-endian bytes."""
     out[i] = tag
     scratch[0] = value
@@ -142,13 +143,13 @@ def _timestamp(out: np.ndarray, i: int, seconds: int, nanos: int) -> int:
     if nanos:
         size += 1 + _varint_size(nanos)
     out[i] = _TIMESTAMP
-    i = _varint(out, i + 1, size)
+    i = varint_field(out, i + 1, size)
     if seconds:
         out[i] = 0x08
-        i = _varint(out, i + 1, seconds)
+        i = varint_field(out, i + 1, seconds)
     if nanos:
         out[i] = 0x10
-        i = _varint(out, i + 1, nanos)
+        i = varint_field(out, i + 1, nanos)
     return i
 
 
@@ -208,7 +209,7 @@ def encode_step(
                     rot_size += 9
             size += 2 + rot_size
         out[i] = _TRANSFORM
-        i = _varint(out, i + 1, size)
+        i = varint_field(out, i + 1, size)
         out[i : i + stamp_size] = stamp[:stamp_size]
         i += stamp_size
         out[i : i + end - start] = blocks[start:end]
@@ -219,7 +220,7 @@ def encode_step(
             i += 2
             for j in range(4):
                 if quat[j] != 0.0:
-                    i = _double(out, i, 0x09 + 8 * j, quat[j], scratch)
+                    i = double_field(out, i, 0x09 + 8 * j, quat[j], scratch)
         start = end
     tf_end = i
     out[i : i + stamp_size] = stamp[:stamp_size]
@@ -227,13 +228,13 @@ def encode_step(
     for j in range(len(ends) - k):
         end = ends[k + j]
         out[i] = _JOINT
-        i = _varint(out, i + 1, (end - start) + 36)
+        i = varint_field(out, i + 1, (end - start) + 36)
         out[i : i + end - start] = blocks[start:end]
         i += end - start
-        i = _double(out, i, 0x11, q[j], scratch)
-        i = _double(out, i, 0x19, v[j], scratch)
-        i = _double(out, i, 0x21, qacc[j], scratch)
-        i = _double(out, i, 0x29, tau[j], scratch)
+        i = double_field(out, i, 0x11, q[j], scratch)
+        i = double_field(out, i, 0x19, v[j], scratch)
+        i = double_field(out, i, 0x21, qacc[j], scratch)
+        i = double_field(out, i, 0x29, tau[j], scratch)
         start = end
     return tf_end, i
 
