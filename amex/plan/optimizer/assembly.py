@@ -347,26 +347,7 @@ class CompiledSolve:
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
     ) -> np.ndarray:
         """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
-        c, size = self.constants, point.r_acc.size
-        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
-        damped_system(
-            band,
-            rhs,
-            c.band_scale,
-            c.metric,
-            model.final_JtJ,
-            model.final_Jtr,
-            model.final_first,
-            point.r_acc,
-            c.s_acc2,
-            point.cap,
-            point.obs,
-            point.knot,
-            model.J_col,
-            point.r_near,
-            woken,
-            lam,
-        )  # system()'s, written out (one call less per iteration)
+        band, rhs = self.system(point, model, woken, lam)
         try:
             return solve_band(band, rhs)
         except (LinAlgError, ValueError) as e:
