@@ -66,6 +66,8 @@ class LiveRecorder:
             (keep it short).
         inner: a recorder the steps are forwarded to (an MCAP logger), or None.
         paused: start paused.
+        on_hold: called in the loop's thread when the loop comes to rest in a pause, after the
+            last step's ``on_step``: from then on the scene stands still until a resume or step.
     """
 
     def __init__(
@@ -75,9 +77,11 @@ class LiveRecorder:
         on_step: Callable[[StepRecord, PaceStats], None] | None = None,
         inner: Recorder | None = None,
         paused: bool = False,
+        on_hold: Callable[[], None] | None = None,
     ) -> None:
         self.scenario = scenario
         self.on_step = on_step
+        self.on_hold = on_hold
         self.inner = inner
         self.result: EpisodeResult | None = None
         self._speed = _checked_speed(speed)
@@ -85,6 +89,7 @@ class LiveRecorder:
         self._paused = paused
         self._steps_allowed = 0
         self._stopped = False
+        self._held = False  # the loop rests in a pause
         self._base: float | None = None  # wall time of simulation time 0 at the current pace
         self._resumed = time.perf_counter()  # when record() last returned
         self._window: deque[tuple[float, float]] = deque()  # (wall, sim) while running
@@ -97,6 +102,11 @@ class LiveRecorder:
     def paused(self) -> bool:
         """Whether the loop waits for :meth:`resume` or :meth:`step`."""
         return self._paused
+
+    @property
+    def held(self) -> bool:
+        """Whether the loop has come to rest in a pause (no step is under way)."""
+        return self._held
 
     @property
     def speed(self) -> float:
@@ -126,6 +136,7 @@ class LiveRecorder:
         """Run on in real time."""
         with self._cond:
             self._paused = False
+            self._held = False
             self._base = None
             self._window.clear()
             self._cond.notify_all()
@@ -182,13 +193,19 @@ class LiveRecorder:
         with self._cond:
             while True:
                 if self._stopped:
+                    self._held = False
                     raise EpisodeStopped()
                 if self._paused:
                     if self._steps_allowed > 0:
                         self._steps_allowed -= 1
                         self._base = None
                         self._window.clear()
+                        self._held = False
                         return
+                    if not self._held:
+                        self._held = True
+                        if self.on_hold is not None:
+                            self.on_hold()
                     self._cond.wait(0.1)
                     continue
                 now = time.perf_counter()

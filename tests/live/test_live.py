@@ -113,6 +113,42 @@ def test_paused_loop_moves_only_by_single_steps_and_stop_ends_the_episode(episod
     assert not thread.is_alive() and isinstance(errors[0], EpisodeStopped)
 
 
+def test_pause_reads_held_only_once_the_loop_rests_after_its_last_step(episode):
+    """A pause asked mid-step: the step under way finishes, then on_hold; nothing moves after."""
+    import threading
+
+    context, s, base, method = episode
+    events: list[tuple[str, float]] = []
+    scene = LiveScenario(base)
+    recorder = LiveRecorder(scene, 1.0, on_hold=lambda: events.append(("hold", scene.now)))
+    recorder.on_step = lambda step, pace: events.append(("step", step.t))
+    loop = dataclasses.replace(s.loop, max_time=30.0, stop_radius=-1.0)
+    def run():
+        with pytest.raises(EpisodeStopped):
+            run_episode(context.robot, method(), scene, s.gains, loop, recorder)
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    try:
+        for _ in range(5):  # pause, wait for the hold, check, run on: at random points of a step
+            time.sleep(0.2)
+            recorder.pause()
+            end = time.monotonic() + 5
+            while not recorder.held and time.monotonic() < end:
+                time.sleep(0.001)
+            assert recorder.held
+            at_hold = list(events)
+            time.sleep(0.2)
+            assert events == at_hold  # held: no step after the hold
+            assert at_hold[-1][0] == "hold" and at_hold[-2][0] == "step"
+            assert at_hold[-1][1] == at_hold[-2][1]  # held at the last step's time
+            recorder.resume()
+    finally:
+        recorder.stop()
+        thread.join(timeout=10)
+    assert not thread.is_alive() and not recorder.held
+
+
 @pytest.mark.slow
 def test_session_switches_between_every_registered_method_and_records_a_log(tmp_path):
     session = LiveSession(["task=3"], max_time=20.0, record_dir=tmp_path)

@@ -217,11 +217,14 @@ class LiveSession:
         self._new_request(_Request(self.state.method, "restart"))
 
     def pause(self) -> None:
-        """Hold the simulation."""
+        """Hold the simulation at its next outer step.
+
+        The status reads ``paused`` once the loop has come to rest (the recorder's ``on_hold``),
+        not when asked: a step under way finishes first, and the state shown is that step's.
+        """
         self._paused = True
         if self._recorder is not None:
             self._recorder.pause()
-            self._status("paused")
 
     def resume(self) -> None:
         """Run on in real time."""
@@ -316,7 +319,8 @@ class LiveSession:
         scenario = LiveScenario(base)
         method = TimedMethod(s.method.from_plan(context.plan, s.params, s.outer_dt, context.robot))
         logger = self._logger(request, s, base) if request.record else None
-        recorder = LiveRecorder(scenario, self._speed, self._on_step, logger, self._paused)
+        recorder = LiveRecorder(scenario, self._speed, self._on_step, logger, self._paused,
+                                 on_hold=self._on_hold)  # fmt: skip
         self._episode += 1
         self.path.clear()
         self.history.clear()
@@ -370,6 +374,10 @@ class LiveSession:
 
     def _status(self, status: str) -> None:
         self.state = dataclasses.replace(self.state, status=status)
+
+    def _on_hold(self) -> None:
+        """The recorder's hold (in the loop's thread): the scene stands still from here."""
+        self._status("paused")
 
     def _on_step(self, step: StepRecord, pace: PaceStats) -> None:
         """The recorder's observer: the state for the page (in the loop's thread)."""
