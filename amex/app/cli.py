@@ -102,6 +102,7 @@ def run_main() -> None:
             if not INFORMATIONAL.intersection(argv):
                 from amex.app.checks import launch_lock, validate_command_line
                 from amex.app.launch import main_hydra, run_composed, run_sweep, single_run
+                from amex.app.reaper import start_reaper
 
                 # a single run is composed once, by the Hydra that runs it (amex.app.launch)
                 single = not multirun_flags
@@ -119,6 +120,7 @@ def run_main() -> None:
                     return
                 if not single:
                     settle()  # a sweep's launcher: the collector on again for the whole sweep
+                    start_reaper()  # ends what a SIGKILL to this process leaves (amex.app.reaper)
                     run_sweep(*main_hydra(task, CONF_DIR, argv), task)
                     return
             import hydra

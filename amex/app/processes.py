@@ -9,7 +9,8 @@
   re-raises the stop itself (:func:`stop_behind`), ours or submitit's ``SystemExit`` alike.
 * :func:`watch_parent`: a sweep worker (a joblib/loky process, a submitit local job) whose
   launching process dies, even by SIGKILL, notices within half a second that it was re-parented
-  and stops itself with SIGTERM (forcibly after ``grace`` seconds).
+  and stops itself with SIGTERM (forcibly after ``grace`` seconds); what no amex code runs in
+  yet (a worker loky is still spawning) is ended by the sweep's reaper (:mod:`amex.app.reaper`).
 * :func:`count_rows`: how many episodes a run or sweep directory holds, for the closing line.
 """
 
@@ -23,10 +24,11 @@ from collections.abc import Iterator
 from pathlib import Path
 from types import FrameType
 
+from amex.app.reaper import MARK
 from amex.core.errors import Interrupted
 
 #: Environment variable holding the pid of the process that launched a sweep.
-LAUNCHER_PID = "AMEX_LAUNCHER_PID"
+LAUNCHER_PID = MARK
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 

@@ -53,6 +53,7 @@ class MethodTopic:
         self.kinds: dict[str, str] | None = None
         self._keys: dict[str, bytes] = {}  # key -> its field's key bytes
         self._recipes: dict[tuple[Any, ...], tuple[Converter, ...]] = {}
+        self._logged: dict[tuple[str, ...], tuple[str, ...]] = {}  # a step's keys -> logged ones
 
     def schema(self, t: float, internals: dict[str, Any]) -> P.FlatSchema:
         """The channel's schema, from the first step's values (sets :attr:`kinds`)."""
@@ -78,15 +79,30 @@ class MethodTopic:
         return P.FlatSchema("amex.MethodInternals", tuple(fields))
 
     def encode(self, t: float, internals: dict[str, Any]) -> bytes:
-        """The message of one step (after :meth:`schema`); equal to :meth:`reference_encode`."""
-        signature = (tuple(internals), tuple(map(type, internals.values())))
+        """The message of one step (after :meth:`schema`); equal to :meth:`reference_encode`.
+
+        Only the schema's keys are read: a :class:`~amex.core.lazy.LazyDict` value the schema
+        lacks (CR's planned path, a large array) is not computed for ``/method``.
+        """
+        keys = tuple(internals)
+        try:
+            logged = self._logged[keys]
+        except KeyError:
+            logged = self._logged[keys] = self._logged_keys(keys)
+        values = list(internals.values()) if logged is keys else [internals[k] for k in logged]
+        signature = (logged, tuple(map(type, values)))
         try:
             recipe = self._recipes[signature]
         except KeyError:
             recipe = self._recipes[signature] = self._recipe(*signature)
         parts = [b"\x09" + P.DOUBLE.pack(t)]
-        parts += [convert(value) for convert, value in zip(recipe, internals.values(), strict=True)]
+        parts += [convert(value) for convert, value in zip(recipe, values, strict=True)]
         return b"".join(parts)
+
+    def _logged_keys(self, keys: tuple[str, ...]) -> tuple[str, ...]:
+        """The keys of ``keys`` the schema has, in their order (``keys`` itself if all)."""
+        logged = tuple(k for k in keys if k in self._keys)
+        return keys if logged == keys else logged
 
     def reference_encode(self, t: float, internals: dict[str, Any]) -> bytes:
         """The message of one step, each value converted by the general rule (the oracle)."""

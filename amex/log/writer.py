@@ -17,10 +17,10 @@ topic                schema                    content
 ``/scene/plan``      foxglove.SceneUpdate      the method's current plan: an (k, 3) array under
                                                ``internals()["plan"]`` (<= 100 points shown)
 ``/scene/reference`` foxglove.SceneUpdate      the reference plan's TCP path (every second)
-``/tcp``             JSON                      TCP position, z-axis, velocity, distance to goal
-``/goal``            JSON                      goal position and distance to it
-``/command``         JSON                      the command: y*, y_dot* (and q*, q_dot* if any)
-``/method``          JSON                      the method's ``internals()`` (numbers, flags, texts,
+``/tcp``             protobuf                  TCP position, z-axis, velocity, distance to goal
+``/goal``            protobuf                  goal position and distance to it
+``/command``         protobuf                  the command: y*, y_dot* (and q*, q_dot* if any)
+``/method``          protobuf                  the method's ``internals()`` (numbers, flags, texts,
                                                small number arrays; schema from the first step)
 ``/reference``       JSON                      the reference plan: ``dt``, ``duration`` and
                                                ``samples`` [{t, position, axis}] (once, t = 0)
@@ -42,9 +42,8 @@ message objects (:mod:`amex.log.wire`, :mod:`amex.log.scene_wire`: the same byte
 are kept (:func:`~amex.log.step_topics.capture`, a few copies) and written :data:`BATCH` at a
 time, so the writing code runs warm instead of once between every 10 inner steps; what the run
 shares (link transforms, ``/reference``) is computed once per run (:mod:`amex.log.constants`).
-What remains per outer step is mostly the numbers' text (``%.9g``; ``/method`` at full
-precision), the SDK's writing and its zstd compression: ~40-50 us on these machines, ~110 kB
-per second of simulation.
+What remains per outer step is mostly the SDK's writing (a few microseconds per message, six
+to eight messages a step) and its zstd compression (docs/logs.md gives the measured cost).
 
 Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
 finished log never has the suffix, and no existing file is ever overwritten: an existing

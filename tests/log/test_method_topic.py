@@ -96,3 +96,26 @@ def test_keys_that_are_no_identifiers_get_field_names_and_damage_is_refused():
             decoder.decode(damaged)
     with pytest.raises(ValueError, match="invalid protobuf field name"):
         descriptor_set("amex.X", [("a b", "double")])
+
+
+def test_a_lazy_value_the_schema_lacks_is_not_computed_for_the_message():
+    from amex.core.lazy import Lazy, LazyDict
+
+    computed = []
+
+    def plan():
+        computed.append(1)
+        return np.zeros((50, 3))  # (k, 3): no per-step field
+
+    def step(s):
+        return LazyDict(s=s, plan=Lazy(plan), y_star=Lazy(lambda: np.array([s, 0.0, 1.0])))
+
+    topic = MethodTopic()
+    topic.schema(0.0, step(0.0))  # the first step reads every value: the schema needs them
+    assert set(topic.kinds) == {"t", "s", "y_star"} and computed == [1]
+    for k in range(1, 4):
+        internals = step(0.1 * k)
+        fast = topic.encode(0.01 * k, internals)
+        assert len(computed) == k  # the plan stays unread; y_star, in the schema, is computed
+        assert fast == topic.reference_encode(0.01 * k, internals)  # reads items(): everything
+        assert len(computed) == k + 1
