@@ -27,15 +27,17 @@ from typing import Any
 
 from amex.core.errors import UsageError
 
-#: CPU seconds per episode (Panda, 100 Hz, seed 0): ``make paper``'s cells measured on the 2-core
-#: development machine (``cpu_time`` of their ``summary.json`` / 150; task 0 as task 1). Only the
-#: ratios matter (:func:`order_jobs`); methods not listed cost like AMEX.
+#: CPU seconds per episode (Panda, 100 Hz, seed 0): ``make paper``'s cells on the 2-core
+#: development machine, 2026-12-02, after issue #29 (``cpu_time`` of their ``summary.json`` / 150;
+#: task 0 as task 1; ``track``: DMP's less its outer steps, ~7 ms). Only the ratios matter
+#: (:func:`order_jobs`; replaying that sweep's cell times on two workers, this order ends them
+#: 4 s apart, the older figures' order 11 s); methods not listed cost like AMEX.
 EPISODE_COST: dict[str, tuple[float, ...]] = {  # task 0, 1, 2, 3, 4
-    "amex": (0.097, 0.097, 0.095, 0.29, 0.26),
-    "dmp": (0.073, 0.073, 0.076, 0.19, 0.19),
-    "dmp_ps": (0.073, 0.073, 0.076, 0.19, 0.19),
-    "cr": (0.24, 0.24, 0.26, 0.62, 0.76),
-    "track": (0.07, 0.07, 0.07, 0.19, 0.19),
+    "amex": (0.097, 0.097, 0.105, 0.18, 0.207),
+    "dmp": (0.074, 0.074, 0.095, 0.131, 0.143),
+    "dmp_ps": (0.074, 0.074, 0.095, 0.131, 0.143),
+    "cr": (0.18, 0.18, 0.189, 0.496, 0.58),
+    "track": (0.067, 0.067, 0.088, 0.124, 0.136),
 }
 _SHARD_KEYS = ("shard", "shards")
 
