@@ -31,6 +31,15 @@ GRACE = 15.0  # [s] after the launcher's death, before what is left is killed
 POLL = 0.2  # [s]
 
 
+def alive(pid: int) -> bool:
+    """Whether ``pid`` runs (exists and is no zombie)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
 def marked(launcher: int) -> list[int]:
     """The processes whose environment marks ``launcher`` as their sweep's launcher."""
     mark = f"{MARK}={launcher}".encode()

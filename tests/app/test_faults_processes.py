@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from amex.app.processes import signals_raise
+from amex.app.reaper import alive
 from amex.core.durable import RunLock
 from amex.core.errors import Interrupted, LockedError
 from amex.experiment.config import RunConfig
@@ -43,14 +44,6 @@ def _children(pid: int) -> set[int]:
         frontier = {p for p, parent in parents.items() if parent in frontier} - found
         found |= frontier
     return found
-
-
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
 
 
 def _start(args, cwd):
@@ -87,9 +80,9 @@ def _stop_sweep(tmp_path, how, args=SWEEP):
     how(proc)
     _, stderr = proc.communicate(timeout=60)
     deadline = time.time() + 10
-    while time.time() < deadline and any(_alive(p) for p in workers):
+    while time.time() < deadline and any(alive(p) for p in workers):
         time.sleep(0.1)
-    survivors = [p for p in workers if _alive(p)]
+    survivors = [p for p in workers if alive(p)]
     for p in survivors:  # do not leave them to the next test
         os.kill(p, signal.SIGKILL)
     assert not survivors, f"workers alive 10 s after the launcher stopped: {survivors}"
@@ -161,10 +154,10 @@ def test_a_launcher_killed_before_its_jobs_began_leaves_no_job_running(tmp_path,
     deadline = time.time() + 40  # the workers idle out after 10 s; margin for a loaded machine
     while time.time() < deadline:
         seen |= _all_with_launcher(proc.pid)
-        if not any(_alive(p) for p in seen):
+        if not any(alive(p) for p in seen):
             break
         time.sleep(0.2)
-    survivors = [p for p in seen if _alive(p)]
+    survivors = [p for p in seen if alive(p)]
     for p in survivors:
         os.kill(p, signal.SIGKILL)
     assert not survivors, f"workers alive 40 s after their launcher was killed: {survivors}"

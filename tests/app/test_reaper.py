@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from amex.app.reaper import MARK, marked
+from amex.app.reaper import MARK, alive, marked
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/environ").exists(), reason="needs /proc")
 
@@ -34,17 +34,9 @@ LAUNCHER = textwrap.dedent(
 )
 
 
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != "Z"
-
-
 def _wait_gone(pids, timeout: float) -> float:
     start = time.monotonic()
-    while any(_alive(p) for p in pids) and time.monotonic() - start < timeout:
+    while any(alive(p) for p in pids) and time.monotonic() - start < timeout:
         time.sleep(0.1)
     return time.monotonic() - start
 
@@ -59,19 +51,19 @@ def _launch(grace: float, mode: str):
 def test_a_launcher_killed_by_sigkill_leaves_nothing_after_the_grace():
     proc, reaper, stuck = _launch(1.0, "wait")
     try:
-        assert _alive(reaper) and _alive(stuck)
+        assert alive(reaper) and alive(stuck)
         assert marked(proc.pid) == [stuck]  # the reaper itself carries no mark
         assert f"{MARK}={proc.pid}".encode() not in Path(f"/proc/{reaper}/environ").read_bytes()
         time.sleep(1.5)
-        assert _alive(stuck)  # the reaper waits while the launcher lives
+        assert alive(stuck)  # the reaper waits while the launcher lives
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
         waited = _wait_gone([stuck, reaper], 20)
-        assert not _alive(stuck) and not _alive(reaper)
+        assert not alive(stuck) and not alive(reaper)
         assert 1.0 <= waited < 10  # the grace first, then SIGKILL
     finally:
         for pid in (stuck, reaper):
-            if _alive(pid):
+            if alive(pid):
                 os.kill(pid, signal.SIGKILL)
 
 
@@ -80,7 +72,7 @@ def test_a_launcher_that_ends_leaves_a_reaper_that_ends_with_what_it_left():
     proc.wait()
     assert proc.returncode == 0
     _wait_gone([stuck, reaper], 20)
-    assert not _alive(stuck) and not _alive(reaper)
+    assert not alive(stuck) and not alive(reaper)
 
 
 def test_ctrl_c_to_the_launchers_group_does_not_reach_the_reaper():
@@ -91,4 +83,4 @@ def test_ctrl_c_to_the_launchers_group_does_not_reach_the_reaper():
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
         _wait_gone([stuck, reaper], 20)
-    assert not _alive(stuck) and not _alive(reaper)
+    assert not alive(stuck) and not alive(reaper)
