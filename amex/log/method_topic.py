@@ -116,10 +116,10 @@ class MethodTopic:
         return b"".join(parts)
 
     def _recipe(self, keys: tuple[str, ...], types: tuple[type, ...]) -> tuple[Converter, ...]:
-        """Per key, the converter of its value (module notes)."""
+        """Per key (all of the schema, :meth:`encode`), the converter of its value."""
         kinds = self.kinds or {}
         return tuple(
-            _converter(self._keys[key], kinds[key], value_type) if key in self._keys else _absent
+            _converter(self._keys[key], kinds[key], value_type)
             for key, value_type in zip(keys, types, strict=True)
         )
 
