@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from amex.app.processes import signals_raise
-from amex.app.reaper import alive
+from amex.app.reaper import alive, marked
 from amex.core.durable import RunLock
 from amex.core.errors import Interrupted, LockedError
 from amex.experiment.config import RunConfig
@@ -150,10 +150,10 @@ def test_a_launcher_killed_before_its_jobs_began_leaves_no_job_running(tmp_path,
     proc = _start(args, tmp_path)
     time.sleep(after)
     os.kill(proc.pid, signal.SIGKILL)
-    seen = _all_with_launcher(proc.pid)
+    seen = set(marked(proc.pid))
     deadline = time.time() + 40  # the workers idle out after 10 s; margin for a loaded machine
     while time.time() < deadline:
-        seen |= _all_with_launcher(proc.pid)
+        seen |= set(marked(proc.pid))
         if not any(alive(p) for p in seen):
             break
         time.sleep(0.2)
@@ -166,20 +166,6 @@ def test_a_launcher_killed_before_its_jobs_began_leaves_no_job_running(tmp_path,
         [AMEX_RUN, *args, "episodes=2"], cwd=tmp_path, capture_output=True, text=True, timeout=300
     )
     assert rerun.returncode == 0, rerun.stderr[-2000:]
-
-
-def _all_with_launcher(pid: int) -> set[int]:
-    """Processes whose environment names ``pid`` as their sweep's launcher (orphans included)."""
-    found = set()
-    marker = f"AMEX_LAUNCHER_PID={pid}".encode()
-    for entry in Path("/proc").iterdir():
-        if entry.name.isdigit():
-            try:
-                if marker in (entry / "environ").read_bytes().split(b"\0"):
-                    found.add(int(entry.name))
-            except OSError:
-                continue
-    return found
 
 
 @pytest.mark.slow
