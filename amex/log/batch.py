@@ -24,6 +24,7 @@ import numba
 import numpy as np
 
 from amex.log.flat_proto import varint
+from amex.log.method_topic import Captured
 from amex.log.wire import StepEncoding, double_field, encode_steps, varint_field
 
 if TYPE_CHECKING:
@@ -35,7 +36,7 @@ class Kept(NamedTuple):
 
     obstacles: np.ndarray  # the observation's (a new array each step)
     command: bytes | None  # the /command message of a command of another shape, else None
-    method: bytes  # the /method message
+    method: Captured  # what the /method message needs (MethodTopic.capture)
     plan: np.ndarray | None  # a copy of internals()["plan"] where the scene draws it, else None
 
 
@@ -86,12 +87,13 @@ class StepBatch:
     def __len__(self) -> int:
         return self.count
 
-    def add(self, step: StepRecord, method: bytes, plan: np.ndarray | None) -> None:
+    def add(self, step: StepRecord, method: Captured, plan: np.ndarray | None) -> None:
         """Copy ``step`` into the next row (the batch must not be full).
 
         Args:
             step: the outer step.
-            method: its ``/method`` message (:class:`amex.log.method_topic.MethodTopic`).
+            method: what its ``/method`` message needs
+                (:meth:`~amex.log.method_topic.MethodTopic.capture`).
             plan: its plan to draw (copied here), or None.
         """
         i = self.count

@@ -6,8 +6,8 @@ is written at 100 Hz beside an inner loop of ~0.2-0.3 ms per outer step. The ste
 at a time (:class:`amex.log.batch.StepBatch`): ``/tf``, ``/joint_states``, ``/tcp``, ``/goal``
 and ``/command`` are encoded for the whole batch in two compiled calls (:mod:`amex.log.wire`,
 the SDK's bytes without its objects; the SDK's objects when some transform takes the generic
-path), so a step costs their SDK writes; ``/method`` is encoded when the step is kept
-(:meth:`StepTopics.method_message`, so that its values need no copies). ``/tcp``, ``/goal``,
+path), so a step costs their SDK writes; ``/method``'s values are taken when the step is kept
+(:meth:`StepTopics.method_message`) and encoded with the batch. ``/tcp``, ``/goal``,
 ``/command`` and ``/method`` are amex's protobuf messages (:mod:`amex.log.flat_proto`).
 """
 
@@ -22,7 +22,7 @@ from foxglove.messages import JointState, JointStates, Timestamp
 
 from amex.log.batch import Kept, StepBatch
 from amex.log.constants import LogConstants
-from amex.log.method_topic import MethodTopic
+from amex.log.method_topic import Captured, MethodTopic
 
 
 class StepTopics:
@@ -47,17 +47,18 @@ class StepTopics:
         self._method = MethodTopic()  # /method's schema, at the first step
         self.method_channel: foxglove.Channel | None = None
 
-    def method_message(self, t: float, internals: dict[str, Any]) -> bytes:
-        """``/method``'s message of a step: the numbers, flags, texts, small number arrays.
+    def method_message(self, t: float, internals: dict[str, Any]) -> Captured:
+        """What ``/method``'s message of a step needs: numbers, flags, texts, small arrays.
 
         The first step makes the channel and its schema from its ``internals()``
-        (:class:`amex.log.method_topic.MethodTopic`).
+        (:class:`amex.log.method_topic.MethodTopic`). The message is encoded by :meth:`write`,
+        with the batch (:meth:`~amex.log.method_topic.MethodTopic.capture`).
         """
         method = self._method
         if method.kinds is None:
             self.method_channel = method.schema(t, internals).channel("/method", self._context)
             self._channels["/method"] = self.method_channel.base
-        return method.encode(t, internals)
+        return method.capture(internals)
 
     def write(
         self, batch: StepBatch, k: int, kept: list[Kept]
@@ -75,7 +76,7 @@ class StepTopics:
         channels = self._channels
         tf, joint_states = channels["/tf"], channels["/joint_states"]
         tcp, goal, command = channels["/tcp"], channels["/goal"], channels["/command"]
-        method = channels.get("/method")
+        method, encode = channels.get("/method"), self._method.encode_captured
         for i in range(k):
             ns, step = stamps[i], kept[i]
             if joints is not None:
@@ -89,7 +90,7 @@ class StepTopics:
             goal.log(data[b:c], ns)
             command.log(data[c:d] if step.command is None else step.command, ns)
             if method is not None:
-                method.log(step.method, ns)
+                method.log(encode(times[i], step.method), ns)
             yield times[i], tcps[i]
 
     def _log_joints_generic(

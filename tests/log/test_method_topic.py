@@ -119,3 +119,16 @@ def test_a_lazy_value_the_schema_lacks_is_not_computed_for_the_message():
         assert len(computed) == k  # the plan stays unread; y_star, in the schema, is computed
         assert fast == topic.reference_encode(0.01 * k, internals)  # reads items(): everything
         assert len(computed) == k + 1
+
+
+def test_a_step_is_captured_with_its_values_and_encoded_later_as_they_were():
+    topic = MethodTopic()
+    buffer, values = np.array([0.1, 0.2, 0.3]), [1.0, 2.0]
+    internals = {"s": 0.5, "y_star": buffer, "listed": values, "big": np.zeros(100)}
+    topic.schema(0.0, internals)
+    expected = topic.encode(0.01, internals)
+    captured = topic.capture(internals)
+    buffer[:] = 9.0  # a method that reuses its buffers for the next step
+    values[0] = 9.0
+    assert topic.encode_captured(0.01, captured) == expected
+    assert topic.encode_captured(0.01, captured) != topic.encode(0.01, internals)
