@@ -6,8 +6,9 @@ package's ``__pycache__`` or under ``NUMBA_CACHE_DIR``, one entry per kernel sig
 model. A process that finds no entry compiles the kernels it calls (~4-5 s of CPU for a run of
 AMEX on Task 3, ``make bench``, start-up). ``python -m amex.app.warm`` (run by ``make install``)
 fills the cache by running a few steps of every registered method on an obstacle task, with our
-collision cost and the authors', dynamic and kinematic, and the disturbance observer, so that
-the first run of every method is already warm. On a cluster, run it once per CPU model with
+collision cost and the authors', dynamic and kinematic, and the disturbance observer, and once
+with an MCAP log (the log's encoders are compiled too: ~7 s of CPU at the first ``log=full``
+run otherwise), so that the first run of every method is already warm. On a cluster, run it once per CPU model with
 ``NUMBA_CACHE_DIR`` on the shared file system (docs/clusters.md).
 
 It also writes the bytecode of amex's modules (:func:`warm_bytecode`), as ``pip`` does for a
@@ -24,7 +25,9 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import sys  # noqa: E402
+import tempfile  # noqa: E402
 import time  # noqa: E402
+from pathlib import Path  # noqa: E402
 
 #: The variants whose kernels differ besides the method (Hydra overrides), each run briefly.
 VARIANTS: tuple[tuple[str, ...], ...] = (
@@ -46,22 +49,23 @@ def warm(methods: list[str] | None = None, quiet: bool = False) -> float:
     from amex.methods import METHODS
 
     start = time.process_time()
-    for name in methods or sorted(METHODS):
-        for variant in VARIANTS:
-            overrides = [f"method={name}", *variant, f"max_time={WARM_TIME}"]
-            try:
-                config = load_config(overrides)
-                run_one(config, prepare(config), 0)
-            except AmexError as e:  # a variant a method does not take: skip it
-                if not quiet:
-                    sys.stderr.write(f"warm: {' '.join(overrides)} skipped: {e}\n")
+    with tempfile.TemporaryDirectory(prefix="amex-warm-") as tmp:
+        for name in methods or sorted(METHODS):
+            for k, variant in enumerate(VARIANTS):
+                overrides = [f"method={name}", *variant, f"max_time={WARM_TIME}"]
+                log = Path(tmp) / f"{name}.mcap" if k == 0 else None  # the log's kernels, once
+                try:
+                    config = load_config(overrides)
+                    run_one(config, prepare(config), 0, log)
+                except AmexError as e:  # a variant a method does not take: skip it
+                    if not quiet:
+                        sys.stderr.write(f"warm: {' '.join(overrides)} skipped: {e}\n")
     return time.process_time() - start
 
 
 def warm_bytecode() -> bool:
     """Write the bytecode (``__pycache__/*.pyc``) of every module of amex; True if all compiled."""
     import compileall
-    from pathlib import Path
 
     package = Path(__file__).resolve().parents[1]
     return bool(compileall.compile_dir(str(package), quiet=1))
