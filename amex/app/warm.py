@@ -8,8 +8,8 @@ AMEX on Task 3, ``make bench``, start-up). ``python -m amex.app.warm`` (run by `
 fills the cache by running a few steps of every registered method on an obstacle task, with our
 collision cost and the authors', dynamic and kinematic, and the disturbance observer, and once
 with an MCAP log (the log's encoders are compiled too: ~7 s of CPU at the first ``log=full``
-run otherwise), so that the first run of every method is already warm. On a cluster, run it once per CPU model with
-``NUMBA_CACHE_DIR`` on the shared file system (docs/clusters.md).
+run otherwise), so that the first run of every method is already warm. On a cluster, run it
+once per CPU model with ``NUMBA_CACHE_DIR`` on the shared file system (docs/clusters.md).
 
 It also writes the bytecode of amex's modules (:func:`warm_bytecode`), as ``pip`` does for a
 wheel but not for an editable install: without it, a process started with
