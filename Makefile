@@ -24,10 +24,11 @@ run: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
-## The tests of logs, the episode store and the plan cache again under other BLAS kernels than
-## this machine's: no test may depend on bits that follow the kernel (Intel and AMD differ).
+## The tests of logs, the episode store, the plan cache and CR's compiled kinematics again under
+## other BLAS kernels than this machine's: no test may depend on bits that follow the kernel.
 KERNEL_TESTS := tests/log/test_log.py tests/log/test_faults_logs.py tests/experiment/test_store.py \
-  tests/experiment/test_faults_store.py tests/plan/test_faults_cache.py
+  tests/experiment/test_faults_store.py tests/plan/test_faults_cache.py \
+  tests/plan/test_kinematics_kernels.py
 # SkylakeX too where the CPU has AVX-512 (OpenBLAS cannot run it elsewhere).
 KERNELS := Haswell Prescott $(shell grep -qw avx512f /proc/cpuinfo 2>/dev/null && echo SkylakeX)
 test-kernels: $(STAMP)

@@ -7,7 +7,7 @@ at a time (:class:`amex.log.batch.StepBatch`): ``/tf``, ``/joint_states``, ``/tc
 and ``/command`` are encoded for the whole batch in two compiled calls (:mod:`amex.log.wire`,
 the SDK's bytes without its objects; the SDK's objects when some transform takes the generic
 path), so a step costs their SDK writes; ``/method``'s values are taken when the step is kept
-(:meth:`StepTopics.method_message`) and encoded with the batch. ``/tcp``, ``/goal``,
+(:meth:`StepTopics.method_values`) and encoded with the batch. ``/tcp``, ``/goal``,
 ``/command`` and ``/method`` are amex's protobuf messages (:mod:`amex.log.flat_proto`).
 """
 
@@ -47,7 +47,7 @@ class StepTopics:
         self._method = MethodTopic()  # /method's schema, at the first step
         self.method_channel: foxglove.Channel | None = None
 
-    def method_message(self, t: float, internals: dict[str, Any]) -> Captured:
+    def method_values(self, t: float, internals: dict[str, Any]) -> Captured:
         """What ``/method``'s message of a step needs: numbers, flags, texts, small arrays.
 
         The first step makes the channel and its schema from its ``internals()``

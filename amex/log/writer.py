@@ -349,7 +349,7 @@ class EpisodeLogger:
         plan = (
             internals.get("plan") if (self._steps + batch.count) % self._path_every == 0 else None
         )
-        batch.add(step, self._topics.method_message(step.t, internals), plan)
+        batch.add(step, self._topics.method_values(step.t, internals), plan)
         if batch.count >= BATCH:
             self._flush()
 
