@@ -7,9 +7,10 @@ that reuses the last solution's frames must give the same solution as one that r
 
 The frames and final terms replicate the fused multiply-adds of OpenBLAS's small products, so
 they are bit for bit under the kernels that fuse (Haswell, Zen, SkylakeX and later: x86-64 CPUs
-with AVX2 and FMA, Intel's since 2013 and AMD's since 2017). Under an older kernel (``OPENBLAS_CORETYPE=Prescott``, Sandybridge), which
-does not fuse, numpy rounds those products differently and the two agree to ~1e-16
-(:func:`same_as_numpy`); ``make test-kernels`` runs this file under Prescott.
+with AVX2 and FMA, Intel's since 2013 and AMD's since 2017). Under an older kernel
+(``OPENBLAS_CORETYPE=Prescott``, Sandybridge), which does not fuse, numpy rounds those products
+differently and the two agree to ~1e-16 (:func:`same_as_numpy`); ``make test-kernels`` runs
+this file under Prescott.
 """
 
 from __future__ import annotations
