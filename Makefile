@@ -28,7 +28,7 @@ test: $(STAMP)
 ## other BLAS kernels than this machine's: no test may depend on bits that follow the kernel.
 KERNEL_TESTS := tests/log/test_log.py tests/log/test_faults_logs.py tests/experiment/test_store.py \
   tests/experiment/test_faults_store.py tests/plan/test_faults_cache.py \
-  tests/plan/test_kinematics_kernels.py
+  tests/plan/test_kinematics_kernels.py tests/plan/test_blas.py tests/plan/test_assembly.py
 # SkylakeX too where the CPU has AVX-512 (OpenBLAS cannot run it elsewhere).
 KERNELS := Haswell Prescott $(shell grep -qw avx512f /proc/cpuinfo 2>/dev/null && echo SkylakeX)
 test-kernels: $(STAMP)

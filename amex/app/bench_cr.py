@@ -107,6 +107,24 @@ def _recording(calls: list[Call]) -> Iterator[None]:
             setattr(module, attr, value)
 
 
+@contextmanager
+def _unfused() -> Iterator[None]:
+    """The solver's Python path: the floor's calls made from Python, where they can be seen.
+
+    The compiled iteration makes the same calls on the same inputs from one compiled call
+    (:mod:`amex.plan.optimizer.iteration_kernels`, bit for bit the same solve), where wrapping
+    cannot see them; the recording solve runs the path that makes them one by one.
+    """
+    import amex.plan.optimizer.assembly as assembly
+
+    bound = assembly.BOUND
+    assembly.BOUND = False
+    try:
+        yield
+    finally:
+        assembly.BOUND = bound
+
+
 def _replay(calls: Sequence[Call]) -> tuple[float, float]:
     """Thread CPU and wall time [s] of ``calls`` run back to back (on fresh copies)."""
     fresh = [(fn, tuple(_snapshot(a) for a in args), kw) for fn, args, kw in calls]
@@ -163,7 +181,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         result.step_wall.append((time.perf_counter_ns() - tic) * 1e-9)
         calls: list[Call] = []
         iterations = 0
-        with _recording(calls):
+        with _recording(calls), _unfused():
             for solver, args, kwargs in solves:
                 iterations += solver(*args, **kwargs).iterations
         floor_cpu, floor_wall = _replay(calls) if calls else (0.0, 0.0)

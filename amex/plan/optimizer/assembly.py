@@ -42,7 +42,9 @@ from amex.plan.optimizer.assembly_kernels import (
     wake_pairs,
 )
 from amex.plan.optimizer.band import solve_band
+from amex.plan.optimizer.blas import BOUND
 from amex.plan.optimizer.final_terms import final_terms, final_weights
+from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import GUARD, KnotFrames, acceleration_scale
 from amex.plan.problem import TrajectoryProblem
@@ -133,6 +135,7 @@ class CompiledAssembly:
         self.kinematics = batch_kinematics(robot)
         self.data = robot.model.createData()
         self.Jz = np.empty((3, robot.model.nv))  # the final terms' J_z, scratch
+        self.rows = np.empty((3, robot.model.nv))  # J_w in C order, scratch (final_cost)
         self.nv, self.capsules = int(robot.model.nv), len(robot.capsules)
         self.pinocchio = (robot.model, self.data, robot.tcp_frame_id)
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
@@ -212,6 +215,7 @@ class CompiledSolve:
         self.n, k = assembly.nv, len(problem.obstacle_radii)
         self.collides = constants.collision and k > 0
         self.shape = (assembly.capsules, k, problem.steps)
+        self.fused = BOUND and self.n >= 2  # numpy's routines callable from compiled code
 
     def woken(self) -> np.ndarray:
         """No pair woken yet: (C, k, T) flags (without obstacles the empty ones, shared)."""
@@ -248,13 +252,37 @@ class CompiledSolve:
             J = pin.getFrameJacobian(model, data, fid, _LWA)
             r_fin, J_fin = (np.empty(9 + n), np.empty((9 + n, 2 * n))) if final is None else final
             Jz, goal, axis = self.assembly.Jz, problem.goal_pos, problem.goal_axis
-            Jwv, R, p, w = J[3:].dot(v_last), oMf.rotation, oMf.translation, c.final_weights
+            R, p, w = oMf.rotation, oMf.translation, c.final_weights
+            if self.fused:  # the lines below in one call, numpy's routines included
+                rows = self.assembly.rows
+                cost = final_cost(
+                    J, R, p, v_last, goal, axis, w, self.dt, rows, Jz, r_fin, J_fin, r_acc
+                )
+                if T == 1:  # q_{T-1} is the fixed start
+                    J_fin = J_fin[:, n:]
+                if not self.collides:
+                    return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, None, None, *_NONE))
+                return self._collision_terms(x, r_acc, r_fin, J_fin, cost, known)
+            Jwv = J[3:].dot(v_last)
             final_terms_joint(J, R, p, v_last, Jwv, goal, axis, w, self.dt, Jz, r_fin, J_fin)
             np.multiply(Jz.dot(v_last), c.w3, out=r_fin[c.rate_rows])  # w[3] (Jz @ v)
         if T == 1:  # q_{T-1} is the fixed start
             J_fin = J_fin[:, n:]
         flat_acc = r_acc.reshape(-1)
         cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ calls it
+        return self._collision_terms(x, r_acc, r_fin, J_fin, cost, known)
+
+    def _collision_terms(
+        self,
+        x: np.ndarray,
+        r_acc: np.ndarray,
+        r_fin: np.ndarray,
+        J_fin: np.ndarray,
+        cost: float,
+        known: KnotFrames | None,
+    ) -> Iterate:
+        """The iterate at ``x`` given its other terms: the collision pairs' residuals added."""
+        problem, c, T = self.problem, self.constants, x.shape[0]
         if not self.collides:
             return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, None, None, *_NONE))
         kin = self.assembly.kinematics
@@ -314,7 +342,12 @@ class CompiledSolve:
         first = self.n * point.x.shape[0] - J_fin.shape[1]
         # numpy's gemv either way; dot has less overhead, and calls it as @ does for the whole
         # (contiguous) Jacobian only, not for the T = 1 view of its last columns
-        Jtr = J_fin.T.dot(point.r_fin) if J_fin.flags.c_contiguous else J_fin.T @ point.r_fin
+        if J_fin.flags.c_contiguous:
+            if self.fused:  # numpy's syrk and gemv, in one call
+                return _new(Linearized, (*final_products(J_fin, point.r_fin), first, J_col))
+            Jtr = J_fin.T.dot(point.r_fin)
+        else:
+            Jtr = J_fin.T @ point.r_fin
         return _new(Linearized, (J_fin.T @ J_fin, Jtr, first, J_col))
 
     def system(
@@ -347,11 +380,46 @@ class CompiledSolve:
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
     ) -> np.ndarray:
         """``dx`` (nT,) of ``(H + G + lambda I) dx = -g`` (the numpy damped step's)."""
+        if self.fused:  # system and solve_band in one call (the same LAPACK routine)
+            return self._fused_step(point, model, woken, lam)
         band, rhs = self.system(point, model, woken, lam)
         try:
             return solve_band(band, rhs)
         except (LinAlgError, ValueError) as e:
             raise SolverError(f"Gauss-Newton Cholesky failed: {e}", self.problem) from e
+
+    def _fused_step(
+        self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
+    ) -> np.ndarray:
+        c, size = self.constants, point.r_acc.size
+        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
+        info = damped_solve(
+            band,
+            rhs,
+            c.band_scale,
+            c.metric,
+            model.final_JtJ,
+            model.final_Jtr,
+            model.final_first,
+            point.r_acc,
+            c.s_acc2,
+            point.cap,
+            point.obs,
+            point.knot,
+            model.J_col,
+            point.r_near,
+            woken,
+            lam,
+        )
+        if info == 0:
+            return rhs
+        # solve_band's errors, as it raises them
+        error: Exception
+        if info > 0:
+            error = LinAlgError(f"{info}th leading minor not positive definite")
+        else:
+            error = ValueError(f"illegal value in {-info}th argument of internal pbsv")
+        raise SolverError(f"Gauss-Newton Cholesky failed: {error}", self.problem) from error
 
     def step(self, point: Iterate, step: np.ndarray, tolerance: float) -> tuple[Iterate, bool]:
         """The iterate at ``point.x + step`` and whether ``max |step| < tolerance`` [rad]."""
