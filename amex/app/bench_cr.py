@@ -3,15 +3,19 @@
 The floor of one outer step is the time of the compiled work the step must do anyway, timed
 alone on the same inputs: the Numba kernels of :mod:`amex.plan.kinematics_kernels` (frames,
 capsule distances, near pairs, pair gradients, final terms), the sines and cosines of the
-frames, Pinocchio's three calls of the final terms and LAPACK's banded Cholesky ``dpbsv``.
-Everything else the step spends (numpy glue, allocations, Python) is the gap to close.
+frames, the final terms' kinematics and LAPACK's banded Cholesky ``dpbsv``. The final terms'
+kinematics are Pinocchio's three calls where the solve makes them, and the compiled loop's own
+(:func:`~amex.plan.optimizer.compiled_loop.tcp_kinematics`) where it runs. Everything else the
+step spends (numpy glue, allocations, Python, the band's fill, the small products) is the gap.
 
 How: each outer step (``Method.step``) is timed as the episode loop times it (thread CPU and
 wall). The trajectory solve it ran is captured (its arguments), and after the step, untimed,
-solved again with the floor's functions wrapped so that they record their arguments (copies);
-the solve is deterministic, so these are the step's own calls on the step's own inputs. The
-recorded calls are then replayed back to back, unwrapped, and timed as one block: the floor.
-Nothing here asserts a time.
+solved again on the solver's Python path with the floor's functions wrapped so that they record
+their arguments (copies): these are the step's own calls on the step's own inputs (to the last
+bits where the compiled loop's kinematics round differently). Where the step ran the compiled
+loop, each recorded Pinocchio triple becomes one ``tcp_kinematics`` call at the same joint
+angles. The recorded calls are then replayed back to back, unwrapped, and timed as one block:
+the floor. Nothing here asserts a time.
 """
 
 from __future__ import annotations
@@ -125,6 +129,25 @@ def _unfused() -> Iterator[None]:
         assembly.BOUND = bound
 
 
+def _as_compiled(calls: Sequence[Call], assembly: Any) -> list[Call]:
+    """``calls`` with each Pinocchio triple replaced by the compiled loop's kinematics call."""
+    import pinocchio as pin
+
+    from amex.plan.optimizer.compiled_loop import tcp_kinematics
+
+    local, parents, joint, point, rotation, support = assembly.compiled_robot[:6]
+    n = len(support)
+    out: list[Call] = []
+    for fn, args, kwargs in calls:
+        if fn is pin.computeJointJacobians:
+            buffers = (np.empty((6, n)), np.empty((3, 3)), np.empty(3))
+            kin_args = (local, parents, args[2], joint, point, rotation, support, *buffers)
+            out.append((tcp_kinematics, kin_args, {}))
+        elif fn not in (pin.updateFramePlacement, pin.getFrameJacobian):
+            out.append((fn, args, kwargs))
+    return out
+
+
 def _replay(calls: Sequence[Call]) -> tuple[float, float]:
     """Thread CPU and wall time [s] of ``calls`` run back to back (on fresh copies)."""
     fresh = [(fn, tuple(_snapshot(a) for a in args), kw) for fn, args, kw in calls]
@@ -172,6 +195,12 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         return solve
 
     original = method.step
+    from amex.plan.optimizer import compiled_loop
+    from amex.plan.optimizer.assembly import BOUND
+
+    costs = getattr(method, "costs", None)
+    compiled = compiled_loop.ENABLED and BOUND and hasattr(method, "assembly")
+    compiled = compiled and costs is not None and costs.final_velocity_space != "tcp"
 
     def timed(obs: Any) -> Any:
         solves.clear()
@@ -184,6 +213,8 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         with _recording(calls), _unfused():
             for solver, args, kwargs in solves:
                 iterations += solver(*args, **kwargs).iterations
+        if compiled:
+            calls = _as_compiled(calls, method.assembly)  # type: ignore[attr-defined]
         floor_cpu, floor_wall = _replay(calls) if calls else (0.0, 0.0)
         result.floor_cpu.append(floor_cpu)
         result.floor_wall.append(floor_wall)

@@ -248,17 +248,16 @@ class CR(Method):
             self._status = CRStatus(mode, 0, 0, math.nan, False, 0.0)
             return self._status
         optimizer = self._optimizer
-        problem = optimizer.TrajectoryProblem(
-            q_start=obs.q,
-            v_start=obs.qd,
-            steps=steps,
-            dt=self.knot_dt,
-            goal_pos=obs.goal[:3],
-            goal_axis=obs.goal[3:6],
-            obstacles=obs.obstacles,
-            obstacle_radii=obs.obstacle_radii,
-            costs=self.costs,
-        )
+        # An Observation's arrays are finite and new at each step: kept, not copied and checked
+        # again. The obstacles are copied: the solution's frames keep them, to compare with
+        # the next step's. Anything else goes through the checks.
+        obstacles = np.array(obs.obstacles, dtype=float)
+        args = (obs.q, obs.qd, steps, self.knot_dt, obs.goal[:3], obs.goal[3:6], obstacles)
+        radii = np.array(obs.obstacle_radii, dtype=float)
+        if obstacles.ndim == 2 and obstacles.shape[1] == 3 and obs.q.dtype == obs.qd.dtype == float:
+            problem = optimizer.TrajectoryProblem.prechecked(*args, radii, self.costs)
+        else:
+            problem = optimizer.TrajectoryProblem(*args, radii, self.costs)
         offset = (obs.t - self._knots_t0) / self._knots_dt
         stride = self.knot_dt / self._knots_dt
         rows = whole_knot_rows(len(self._knots), offset, stride, steps + 1)

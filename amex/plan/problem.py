@@ -158,6 +158,58 @@ class TrajectoryProblem:
         if not (math.isfinite(dt) and dt > 0.0):
             raise SolverError(f"trajectory problem: dt={dt}; valid: > 0 [s]", self)
 
+    @classmethod
+    def prechecked(
+        cls,
+        q_start: np.ndarray,
+        v_start: np.ndarray,
+        steps: int,
+        dt: float,
+        goal_pos: np.ndarray,
+        goal_axis: np.ndarray,
+        obstacles: np.ndarray,
+        obstacle_radii: np.ndarray,
+        costs: TrajectoryCosts,
+    ) -> TrajectoryProblem:
+        """The same problem, its arrays kept as given: no copies, no checks.
+
+        For a caller whose arrays are float64 of the problem's shapes (obstacles (k, 3), also
+        for k = 0), finite, never written afterwards, and whose ``steps`` and ``dt`` are valid:
+        CR's step, whose arrays are an :class:`~amex.core.types.Observation`'s (finite by
+        construction, new at every outer step, obstacles replaced rather than moved in place)
+        and whose horizon it computed itself.
+        """
+        problem = object.__new__(cls)
+        put = object.__setattr__
+        put(problem, "q_start", q_start)
+        put(problem, "v_start", v_start)
+        put(problem, "steps", steps)
+        put(problem, "dt", dt)
+        put(problem, "goal_pos", goal_pos)
+        put(problem, "goal_axis", goal_axis)
+        put(problem, "obstacles", obstacles)
+        put(problem, "obstacle_radii", obstacle_radii)
+        put(problem, "costs", costs)
+        return problem
+
+    def check(self) -> None:
+        """Run the constructor's checks on this problem (one made :meth:`prechecked` too).
+
+        Raises:
+            SolverError: naming the field with a bad shape or a non-finite value.
+        """
+        TrajectoryProblem(
+            self.q_start,
+            self.v_start,
+            self.steps,
+            self.dt,
+            self.goal_pos,
+            self.goal_axis,
+            self.obstacles,
+            self.obstacle_radii,
+            self.costs,
+        )
+
 
 #: The array fields of :class:`TrajectoryProblem`, in the order of their shape checks.
 _ARRAYS = ("q_start", "v_start", "goal_pos", "goal_axis", "obstacles", "obstacle_radii")

@@ -14,7 +14,7 @@ import pytest
 from scipy.linalg.lapack import dpbsv as scipy_dpbsv
 
 from amex.plan import optimizer as opt
-from amex.plan.optimizer import assembly, blas
+from amex.plan.optimizer import assembly, blas, compiled_loop
 from amex.plan.optimizer.assembly import CompiledAssembly
 from amex.plan.optimizer.iteration_kernels import final_products
 from amex.plan.problem import TrajectoryCosts
@@ -78,6 +78,7 @@ def test_dpbsv_is_scipys(kd):
 @pytest.mark.parametrize("seed", range(6))
 def test_fused_solve_equals_the_python_path(robot, seed, monkeypatch):
     """The whole solve on the compiled calls and on the Python-level calls: the same bits."""
+    monkeypatch.setattr(compiled_loop, "ENABLED", False)  # its kinematics: test_compiled_loop
     rng = np.random.default_rng(40 + seed)
     T = int(rng.choice([1, 2, 10, 60]))
     tcp = robot.tcp_pose(robot.q0).translation

@@ -27,7 +27,12 @@ import pinocchio as pin
 from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
-from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
+from amex.plan.batch_kinematics import (
+    BatchKinematics,
+    BatchPoses,
+    CapsuleDistances,
+    batch_kinematics,
+)
 from amex.plan.kinematics_kernels import (
     capsule_sphere_distances,
     final_terms_joint,
@@ -136,6 +141,7 @@ class CompiledAssembly:
         self.data = robot.model.createData()
         self.Jz = np.empty((3, robot.model.nv))  # the final terms' J_z, scratch
         self.rows = np.empty((3, robot.model.nv))  # J_w in C order, scratch (final_cost)
+        self.compiled_robot, self.no_frames = _compiled_robot(robot, self.kinematics)
         self.nv, self.capsules = int(robot.model.nv), len(robot.capsules)
         self.pinocchio = (robot.model, self.data, robot.tcp_frame_id)
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
@@ -216,6 +222,8 @@ class CompiledSolve:
         self.collides = constants.collision and k > 0
         self.shape = (assembly.capsules, k, problem.steps)
         self.fused = BOUND and self.n >= 2  # numpy's routines callable from compiled code
+        # the whole solve compiled (compiled_loop): the joint-velocity final terms, T >= 2
+        self.loop = self.fused and not constants.tcp_velocity and problem.steps >= 2
 
     def woken(self) -> np.ndarray:
         """No pair woken yet: (C, k, T) flags (without obstacles the empty ones, shared)."""
@@ -413,7 +421,11 @@ class CompiledSolve:
         )
         if info == 0:
             return rhs
-        # solve_band's errors, as it raises them
+        self.raise_cholesky(info)
+        raise AssertionError  # (unreachable: raise_cholesky raises)
+
+    def raise_cholesky(self, info: int) -> None:
+        """Raise :func:`~.band.solve_band`'s error for LAPACK's ``info`` as a SolverError."""
         error: Exception
         if info > 0:
             error = LinAlgError(f"{info}th leading minor not positive definite")
@@ -463,6 +475,46 @@ class CompiledSolve:
             return None
         problem = self.problem
         return KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
+
+
+def _compiled_robot(
+    robot: RobotModel, kin: BatchKinematics
+) -> tuple[tuple[object, ...], tuple[np.ndarray, ...]]:
+    """The arm's arrays :func:`~.compiled_loop.levenberg_loop` reads, and its empty frames.
+
+    The TCP's point and rotation in its joint's turned frame (as
+    :meth:`~amex.plan.batch_kinematics.BatchKinematics.frame_positions` turns them) and the
+    joints that move it; the capsules' tables; frames and distances over zero knots.
+    """
+    frame = robot.model.frames[robot.tcp_frame_id]
+    joint = int(frame.parentJoint)
+    turn = kin.turn[joint]
+    support = np.zeros(robot.model.nv, dtype=bool)
+    j = joint
+    while j > 0:
+        support[j - 1] = True
+        j = kin.parents[j]
+    arrays = (
+        kin.local,
+        kin.parents_array,
+        joint,
+        np.ascontiguousarray(turn.T @ frame.placement.translation),
+        np.ascontiguousarray(turn.T @ frame.placement.rotation),
+        support,
+        kin.cap_joint,
+        kin.cap_ends,
+        kin.cap_inv_len2,
+        kin.cap_radius,
+        kin.cap_support,
+    )
+    C, nj = len(kin.cap_joint), kin.njoints
+    empty = (
+        np.empty((nj, 3, 3, 0)),
+        np.empty((nj, 3, 0)),
+        np.empty((C, 0, 0)),
+        np.empty((C, 0, 3, 0)),
+    )
+    return arrays, empty
 
 
 def assembly_for(

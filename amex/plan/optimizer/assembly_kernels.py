@@ -228,6 +228,7 @@ def damped_band(
         touched[col // n] = True
     s6, s5, s4, s2 = 6.0 * scale, 5.0 * scale, -4.0 * scale, -2.0 * scale
     weighted = metric.shape[0] > 0
+    band.T.reshape(-1)[:] = 0.0  # one pass over the memory (0 h = 0 for the metric's h > 0)
     for t in range(T):
         diagonal = scale if t == T - 1 else (s5 if t == T - 2 else s6)
         first_off = 0.0 if t >= T - 1 else (s2 if t == T - 2 else s4)
@@ -236,8 +237,6 @@ def damped_band(
         for j in range(n):
             col = t * n + j
             h = metric[j] if weighted else 1.0  # (c scale) h as numpy scales by the metric; x 1 = x
-            for d in range(1, width):
-                band[d, col] = 0.0  # 0 h = 0 for the metric's h > 0
             band[0, col] = diagonal * h + shift
             band[n, col] = first_off * h
             band[2 * n, col] = second_off * h

@@ -15,7 +15,8 @@ from functools import cache
 import numpy as np
 
 from amex.core.errors import ConfigError, SolverError
-from amex.plan.optimizer.assembly import CompiledAssembly, assembly_for
+from amex.plan.optimizer import compiled_loop
+from amex.plan.optimizer.assembly import CompiledAssembly, CompiledSolve, assembly_for
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import KnotFrames, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
@@ -100,8 +101,13 @@ def solve_trajectory(
         x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
     if init_frames is not None and init_frames.poses.position.shape[2] != len(x):
         init_frames = None
+    if compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
+        return compiled_loop.solve_compiled(
+            solve, x, init_frames, max_iterations, tolerance, damping, _INITIAL_DAMPING
+        )
     point = solve.evaluate(x, init_frames)
     if not math.isfinite(point.cost):
+        problem.check()  # a non-finite input named, where that is the cause
         raise SolverError(f"non-finite trajectory cost {point.cost} at the initial guess", problem)
     lam = max(damping, _INITIAL_DAMPING)
     converged, iterations = False, 0
