@@ -32,6 +32,7 @@ from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
 _new = tuple.__new__  # a NamedTuple made without its Python-level __new__ (the same tuple)
+_F64 = np.dtype(np.float64)
 #: ``method.collision_cost``: the implementation's own, ours, the authors'.
 CR_COLLISION_COSTS = ("auto", "hinge", "proxy")
 
@@ -205,6 +206,9 @@ class CR(Method):
         self.tolerance, self.damping = float(c.tolerance), float(c.damping)
         self.min_steps = int(c.min_steps)
         self.tail_steps = int(round(c.tail_horizon / self.knot_dt))
+        # the command's stride on a replanned horizon: q(t), q(t + dt / 2), q(t + dt)
+        self._stride = dt / self.knot_dt / 2.0
+        self._whole = abs(self._stride - round(self._stride)) <= 1e-9  # whole knots (whole_knots)
         self.restart()
 
     # ----------------------------------------------------------------------------- state
@@ -251,13 +255,14 @@ class CR(Method):
         # An Observation's arrays are finite and new at each step: kept, not copied and checked
         # again. The obstacles are copied: the solution's frames keep them, to compare with
         # the next step's. Anything else goes through the checks.
-        obstacles = np.array(obs.obstacles, dtype=float)
-        args = (obs.q, obs.qd, steps, self.knot_dt, obs.goal[:3], obs.goal[3:6], obstacles)
-        radii = np.array(obs.obstacle_radii, dtype=float)
-        if obstacles.ndim == 2 and obstacles.shape[1] == 3 and obs.q.dtype == obs.qd.dtype == float:
-            problem = optimizer.TrajectoryProblem.prechecked(*args, radii, self.costs)
+        o, r, q, v = obs.obstacles, obs.obstacle_radii, obs.q, obs.qd
+        arrays = type(o) is type(r) is type(q) is type(v) is np.ndarray
+        if arrays and o.dtype is r.dtype is q.dtype is v.dtype is _F64 and o.shape[1:] == (3,):
+            args = (q, v, steps, self.knot_dt, obs.goal[:3], obs.goal[3:6], o.copy(), r.copy())
+            problem = optimizer.TrajectoryProblem.prechecked(*args, self.costs)
         else:
-            problem = optimizer.TrajectoryProblem(*args, radii, self.costs)
+            args = (q, v, steps, self.knot_dt, obs.goal[:3], obs.goal[3:6], o, r)
+            problem = optimizer.TrajectoryProblem(*args, self.costs)
         offset = (obs.t - self._knots_t0) / self._knots_dt
         stride = self.knot_dt / self._knots_dt
         rows = whole_knot_rows(len(self._knots), offset, stride, steps + 1)
@@ -290,11 +295,11 @@ class CR(Method):
 
     def target(self) -> JointTarget:
         """Joint target ``(q*, q_dot*)`` of the current plan (module notes), shapes (n,)."""
+        knots = self._knots
         if self._status.mode != "shrink":  # hold, or the tail's final approach
-            return JointTarget(self._knots[-1].copy(), np.zeros(self._knots.shape[1]))
-        u = self.dt / self._knots_dt
-        knots, stride = self._knots, u / 2.0  # q(t), q(t + dt / 2), q(t + dt)
-        if len(knots) < 2 or abs(stride - round(stride)) <= 1e-9:  # whole knots (whole_knots)
+            return JointTarget(knots[-1].copy(), np.zeros(knots.shape[1]))
+        stride = self._stride  # a shrink step's knots are knot_dt apart
+        if self._whole or len(knots) < 2:
             q = resample_knots(knots, 0.0, stride, 3)
             return JointTarget(q[1], (q[2] - q[0]) / self.dt)
         n = knots.shape[1]

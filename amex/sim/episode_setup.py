@@ -42,7 +42,6 @@ class Probe(Protocol):
         """Called before inner step ``k`` reads the state from ``data``."""
 
 
-
 class Episode:
     """What the loop of one episode works with, built before its first step."""
 

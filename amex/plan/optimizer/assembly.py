@@ -124,6 +124,7 @@ class _Constants(NamedTuple):
     w3: float  # the axis rate's weight root (final_weights[3])
     rate_rows: slice  # the axis rate's rows of the final residuals
     tcp_velocity: bool  # the final velocity of the TCP (the original's), not of the joints
+    fixed: tuple[object, ...]  # what compiled_loop.levenberg_loop reads of these, in its order
 
 
 class CompiledAssembly:
@@ -195,18 +196,26 @@ class CompiledAssembly:
         c, dt, n = problem.costs, float(problem.dt), self.robot.model.nv
         s_acc = acceleration_scale(c, dt)
         w = c.weights
+        s_acc_n = np.full(n, s_acc) if isinstance(s_acc, float) else s_acc
+        s_acc2 = np.full(n, 2.0 * s_acc) if isinstance(s_acc, float) else 2.0 * s_acc
+        band_scale = 2.0 * float(w.acceleration) / dt**3
+        metric = np.asarray(c.metric, dtype=float)
+        weights = final_weights(c)
+        margin, s_col = float(w.collision_margin), math.sqrt(w.collision)
+        fixed = (dt, s_acc_n, band_scale, metric, s_acc2, weights, margin, s_col)
         return _Constants(
-            np.full(n, s_acc) if isinstance(s_acc, float) else s_acc,
-            np.full(n, 2.0 * s_acc) if isinstance(s_acc, float) else 2.0 * s_acc,
-            2.0 * float(w.acceleration) / dt**3,
-            np.asarray(c.metric, dtype=float),
-            final_weights(c),
-            float(w.collision_margin),
-            math.sqrt(w.collision),
+            s_acc_n,
+            s_acc2,
+            band_scale,
+            metric,
+            weights,
+            margin,
+            s_col,
             bool(self.robot.capsules) and w.collision > 0.0,
-            final_weights(c)[3],
+            weights[3],
             slice(6 + n, None),
             c.final_velocity_space == "tcp",
+            fixed,
         )
 
 

@@ -119,6 +119,7 @@ def _evaluate(
     r_fin: np.ndarray,
     J_fin: np.ndarray,
     frames: tuple,  # type: ignore[type-arg]
+    fixed: tuple,  # type: ignore[type-arg]
     problem: tuple,  # type: ignore[type-arg]
     robot: tuple,  # type: ignore[type-arg]
     known: tuple,  # type: ignore[type-arg]
@@ -127,7 +128,8 @@ def _evaluate(
 ) -> tuple:  # type: ignore[type-arg]
     """:meth:`~.assembly.CompiledSolve.evaluate` at ``x`` with its residual buffers filled."""
     J, R, p, rows, Jz = frames
-    goal_pos, goal_axis, w, dt, obstacles, radii, margin, s_col, collides = problem
+    goal_pos, goal_axis, obstacles, radii, collides = problem[2:]
+    dt, w, margin, s_col = fixed[0], fixed[5], fixed[6], fixed[7]
     local, parents, tcp_joint, tcp_point, tcp_rot, tcp_support = robot[:6]
     cap_joint, cap_ends, cap_inv_len2, cap_radius = robot[6:10]
     T = x.shape[0]
@@ -172,8 +174,7 @@ def _evaluate(
 @numba.njit(cache=True)
 def levenberg_loop(
     x0: np.ndarray,
-    start: tuple,  # type: ignore[type-arg]
-    band_terms: tuple,  # type: ignore[type-arg]
+    fixed: tuple,  # type: ignore[type-arg]
     problem: tuple,  # type: ignore[type-arg]
     robot: tuple,  # type: ignore[type-arg]
     known: tuple,  # type: ignore[type-arg]
@@ -190,11 +191,9 @@ def levenberg_loop(
     ``info``; ``q`` the solution with the start as row 0; the frames and distances at its free
     knots (empty without collision term).
     """
-    q_start, v_start, dt, s_acc = start
-    scale, metric, s_acc2 = band_terms
-    margin, s_col, collides = problem[6], problem[7], problem[8]
+    dt, s_acc, scale, metric, s_acc2, w, margin, s_col = fixed
+    q_start, v_start, obstacles, collides = problem[0], problem[1], problem[4], problem[6]
     cap_support = robot[10]
-    obstacles = problem[4]
     max_iterations, tolerance, damping, initial_damping = settings
     T, n = x0.shape
     m = 9 + n
@@ -210,7 +209,7 @@ def levenberg_loop(
     start_residuals(x, q_start, v_start, dt, s_acc, r_acc, v_last)
     r_fin, J_fin = np.empty(m), np.empty((m, 2 * n))
     point = _evaluate(
-        x, r_acc, v_last, r_fin, J_fin, frames, problem, robot, known, use_known, reuse_dist
+        x, r_acc, v_last, r_fin, J_fin, frames, fixed, problem, robot, known, use_known, reuse_dist
     )
     cost = point[0]
     q = np.empty((T + 1, n))
@@ -218,7 +217,7 @@ def levenberg_loop(
         return _BAD_START, cost, q, cost, 0, False, point[1], point[2], point[3], point[4]
     lam = max(damping, initial_damping)
     converged, iterations = False, 0
-    C, k = robot[6].shape[0], problem[5].shape[0]
+    C, k = robot[6].shape[0], problem[5].shape[0]  # capsules, obstacles
     woken = np.zeros((C, k, T) if k > 0 else (0, 0, 0), dtype=np.bool_)
     current_set = -1  # the trial set holding the point (-1: x0)
     linearized = False
@@ -282,6 +281,7 @@ def levenberg_loop(
             fins[s],
             jacs[s],
             frames,
+            fixed,
             problem,
             robot,
             known,
@@ -346,17 +346,14 @@ def solve_compiled(
     band, rhs = assembly.buffers(2 * solve.n + 1, solve.n * problem.steps)
     outcome, value, q, cost, iterations, converged, axes, pos, distance, offset = levenberg_loop(
         x,
-        (solve.q_start, solve.v_start, float(solve.dt), c.s_acc),
-        (c.band_scale, c.metric, c.s_acc2),
+        c.fixed,
         (
+            problem.q_start,
+            problem.v_start,
             problem.goal_pos,
             problem.goal_axis,
-            c.final_weights,
-            float(solve.dt),
             problem.obstacles,
             problem.obstacle_radii,
-            c.margin,
-            c.s_col,
             solve.collides,
         ),
         assembly.compiled_robot,

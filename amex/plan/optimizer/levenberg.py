@@ -24,6 +24,7 @@ from amex.robot import RobotModel
 
 __all__ = ["solve_trajectory"]
 
+_F64 = np.dtype(np.float64)
 _INITIAL_DAMPING = 1.0  # Levenberg lambda of the first iteration (see solve_trajectory)
 _M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
 _TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
@@ -94,12 +95,15 @@ def solve_trajectory(
         )
     _retain_freed_memory()
     solve = assembly_for(robot, problem, assembly).begin(problem)
-    shape = (problem.steps + 1, robot.model.nq)
-    if type(q_init) is np.ndarray and q_init.dtype == np.float64 and q_init.shape == shape:
-        x = q_init[1:]  # free_knots' answer, without its checks' call (CR's every step)
+    steps = problem.steps
+    if type(q_init) is np.ndarray and q_init.dtype is _F64 and q_init.shape[0] == steps + 1:
+        if q_init.shape[1:] == (robot.model.nq,):
+            x = q_init[1:]  # free_knots' answer, without its checks' call (CR's every step)
+        else:
+            x = free_knots(robot, problem, q_init)
     else:
         x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
-    if init_frames is not None and init_frames.poses.position.shape[2] != len(x):
+    if init_frames is not None and init_frames.poses.position.shape[2] != steps:
         init_frames = None
     if compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
         return compiled_loop.solve_compiled(
