@@ -43,3 +43,24 @@ def test_startup_is_timed_warm_cold_and_beside_both_floors():
     assert all(len(v) == 1 and v[0] > 0 for v in times)
     # an empty Numba cache compiles every kernel a run calls: seconds, not the warm start's one
     assert times.cold[0] > 2 * times.warm[0]
+
+
+def test_cr_floor_replays_the_compiled_loops_own_calls(monkeypatch):
+    """The floor of a step on the compiled loop: its kinematics kernel in place of Pinocchio's
+    three calls, LAPACK's dpbsv, and nothing of the step's Python."""
+    import pinocchio as pin
+    import scipy.linalg.lapack as lapack
+
+    from amex.app import bench_cr
+    from amex.plan.optimizer.compiled_loop import tcp_kinematics
+
+    replayed = []
+    replay = bench_cr._replay
+    monkeypatch.setattr(bench_cr, "_replay", lambda calls: replayed.append(calls) or replay(calls))
+    result = bench_cr.cr_floor(1, range(1), ("max_time=0.3",))
+    solving = [i for i, n in enumerate(result.iterations) if n > 0]
+    assert solving and all(result.floor_cpu[i] > 0.0 for i in solving)
+    assert all(0.0 < result.floor_cpu[i] < 10 * result.step_cpu[i] for i in solving)
+    functions = {fn for calls in replayed for fn, _, _ in calls}
+    assert tcp_kinematics in functions and lapack.dpbsv in functions
+    assert not functions & {pin.computeJointJacobians, pin.getFrameJacobian}

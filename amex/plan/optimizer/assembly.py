@@ -9,12 +9,15 @@ to the next. The numbers are those of the numpy functions it replaces (the oracl
 step) bit for bit; ``tests/plan/test_assembly.py`` compares them. The authors' proxy collision
 term (``collision_cost=proxy``) runs on the oracle.
 
-Over the 400-line guide (~425) on purpose: CR's outer step runs ``evaluate`` two or three
+Over the 400-line guide (~505) on purpose: CR's outer step runs ``evaluate`` two or three
 times, so the kernels' calls of the final terms, distances and gradients are written out in it
 (the same calls, in the same order, as :func:`~.final_terms.final_terms` and
 :class:`~amex.plan.batch_kinematics.BatchKinematics` make them), and the trials reuse two sets
 of buffers (:meth:`CompiledAssembly.trial_buffers`): each layer less was measurable there
-(issue #29, docs/results/speed.md).
+(issue #29, docs/results/speed.md). Each step that now runs as one compiled call
+(:mod:`.iteration_kernels`) keeps its Python calls beside it: they are the path where numpy is
+not on its own OpenBLAS, and with :mod:`.compiled_loop` switched off, the bit-for-bit oracle of
+the compiled steps.
 """
 
 from __future__ import annotations
@@ -27,12 +30,7 @@ import pinocchio as pin
 from scipy.linalg import LinAlgError
 
 from amex.core.errors import SolverError
-from amex.plan.batch_kinematics import (
-    BatchKinematics,
-    BatchPoses,
-    CapsuleDistances,
-    batch_kinematics,
-)
+from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
 from amex.plan.kinematics_kernels import (
     capsule_sphere_distances,
     final_terms_joint,
@@ -48,6 +46,7 @@ from amex.plan.optimizer.assembly_kernels import (
 )
 from amex.plan.optimizer.band import solve_band
 from amex.plan.optimizer.blas import BOUND
+from amex.plan.optimizer.compiled_loop import robot_arrays
 from amex.plan.optimizer.final_terms import final_terms, final_weights
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
@@ -142,7 +141,7 @@ class CompiledAssembly:
         self.data = robot.model.createData()
         self.Jz = np.empty((3, robot.model.nv))  # the final terms' J_z, scratch
         self.rows = np.empty((3, robot.model.nv))  # J_w in C order, scratch (final_cost)
-        self.compiled_robot, self.no_frames = _compiled_robot(robot, self.kinematics)
+        self.compiled_robot, self.no_frames = robot_arrays(robot, self.kinematics)
         self.nv, self.capsules = int(robot.model.nv), len(robot.capsules)
         self.pinocchio = (robot.model, self.data, robot.tcp_frame_id)
         self._band, self._rhs = np.zeros((1, 0), order="F"), np.zeros(0)
@@ -484,46 +483,6 @@ class CompiledSolve:
             return None
         problem = self.problem
         return KnotFrames(point.poses, point.dist, problem.obstacles, problem.obstacle_radii)
-
-
-def _compiled_robot(
-    robot: RobotModel, kin: BatchKinematics
-) -> tuple[tuple[object, ...], tuple[np.ndarray, ...]]:
-    """The arm's arrays :func:`~.compiled_loop.levenberg_loop` reads, and its empty frames.
-
-    The TCP's point and rotation in its joint's turned frame (as
-    :meth:`~amex.plan.batch_kinematics.BatchKinematics.frame_positions` turns them) and the
-    joints that move it; the capsules' tables; frames and distances over zero knots.
-    """
-    frame = robot.model.frames[robot.tcp_frame_id]
-    joint = int(frame.parentJoint)
-    turn = kin.turn[joint]
-    support = np.zeros(robot.model.nv, dtype=bool)
-    j = joint
-    while j > 0:
-        support[j - 1] = True
-        j = kin.parents[j]
-    arrays = (
-        kin.local,
-        kin.parents_array,
-        joint,
-        np.ascontiguousarray(turn.T @ frame.placement.translation),
-        np.ascontiguousarray(turn.T @ frame.placement.rotation),
-        support,
-        kin.cap_joint,
-        kin.cap_ends,
-        kin.cap_inv_len2,
-        kin.cap_radius,
-        kin.cap_support,
-    )
-    C, nj = len(kin.cap_joint), kin.njoints
-    empty = (
-        np.empty((nj, 3, 3, 0)),
-        np.empty((nj, 3, 0)),
-        np.empty((C, 0, 0)),
-        np.empty((C, 0, 3, 0)),
-    )
-    return arrays, empty
 
 
 def assembly_for(

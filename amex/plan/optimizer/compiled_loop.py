@@ -17,8 +17,10 @@ from Pinocchio's in the last bits. The solve's numbers then agree with the Pinoc
 times (docs/results/speed.md gives the measured differences). ``tests/plan/test_compiled_loop.py``
 compares the two paths.
 
-Over the 80-line guide for one function on purpose: :func:`levenberg_loop` is
-:func:`~.levenberg.solve_trajectory` written out, so the two read side by side.
+Over the 400-line guide for a module (~420) and the 80-line guide for a function on purpose:
+:func:`levenberg_loop` is :func:`~.levenberg.solve_trajectory` written out, with
+:meth:`~.assembly.CompiledSolve.evaluate` as :func:`_evaluate`, so that each reads beside its
+Python original.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ import numba
 import numpy as np
 
 from amex.core.errors import SolverError
-from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances
+from amex.plan.batch_kinematics import BatchKinematics, BatchPoses, CapsuleDistances
 from amex.plan.kinematics_kernels import (
     capsule_sphere_distances,
     forward_frames,
@@ -45,8 +47,9 @@ from amex.plan.problem import TrajectorySolution
 
 if TYPE_CHECKING:
     from amex.plan.optimizer.assembly import CompiledSolve
+    from amex.robot import RobotModel
 
-__all__ = ["levenberg_loop", "solve_compiled", "tcp_kinematics"]
+__all__ = ["levenberg_loop", "robot_arrays", "solve_compiled", "tcp_kinematics"]
 
 #: Whether :func:`~.levenberg.solve_trajectory` runs :func:`levenberg_loop` where it can (the
 #: tests and ``python -m amex.app.bench_cr`` switch it off to run the Python loop beside it).
@@ -317,6 +320,46 @@ def levenberg_loop(
     q[0] = q_start
     q[1:] = x
     return _SOLVED, 0.0, q, cost, iterations, converged, point[1], point[2], point[3], point[4]
+
+
+def robot_arrays(
+    robot: RobotModel, kin: BatchKinematics
+) -> tuple[tuple[object, ...], tuple[np.ndarray, ...]]:
+    """The arm's arrays :func:`levenberg_loop` reads, and its frames over zero knots.
+
+    The TCP's point and rotation in its joint's turned frame (as
+    :meth:`~amex.plan.batch_kinematics.BatchKinematics.frame_positions` turns them) and the
+    joints that move it; the capsules' tables; frames and distances over zero knots.
+    """
+    frame = robot.model.frames[robot.tcp_frame_id]
+    joint = int(frame.parentJoint)
+    turn = kin.turn[joint]
+    support = np.zeros(robot.model.nv, dtype=bool)
+    j = joint
+    while j > 0:
+        support[j - 1] = True
+        j = kin.parents[j]
+    arrays = (
+        kin.local,
+        kin.parents_array,
+        joint,
+        np.ascontiguousarray(turn.T @ frame.placement.translation),
+        np.ascontiguousarray(turn.T @ frame.placement.rotation),
+        support,
+        kin.cap_joint,
+        kin.cap_ends,
+        kin.cap_inv_len2,
+        kin.cap_radius,
+        kin.cap_support,
+    )
+    C, nj = len(kin.cap_joint), kin.njoints
+    empty = (
+        np.empty((nj, 3, 3, 0)),
+        np.empty((nj, 3, 0)),
+        np.empty((C, 0, 0)),
+        np.empty((C, 0, 3, 0)),
+    )
+    return arrays, empty
 
 
 def solve_compiled(
