@@ -285,6 +285,7 @@ class CR(Method):
             damping=self.damping,
             init_frames=frames,
             assembly=self.assembly,
+            compiled=True,  # one compiled call (the reference plan keeps the Python loop)
         )
         self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
         self._frames = solution.frames

@@ -23,20 +23,12 @@ from amex.plan.knots import (
     whole_knot_rows,
     whole_knots,
 )
-from amex.plan.optimizer import compiled_loop
 from amex.plan.optimizer.assembly import CompiledAssembly
 from amex.plan.optimizer.assembly_kernels import segment_sum, start_residuals, take_step
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly, damped_band_numpy
 from amex.plan.optimizer.residuals import acceleration_scale, free_knots, residuals
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
 from amex.plan.weights import CollisionWeights
-
-
-@pytest.fixture
-def python_loop(monkeypatch):
-    """The solver's Python loop over the compiled iteration (the compiled loop rounds the final
-    terms' kinematics differently: ``tests/plan/test_compiled_loop.py``)."""
-    monkeypatch.setattr(compiled_loop, "ENABLED", False)
 
 
 def identical(a, b) -> bool:
@@ -120,7 +112,7 @@ def test_the_iteration_tests_cover_guards_and_wakes(robot):
 
 
 @pytest.mark.parametrize("seed", range(16))
-def test_compiled_solve_equals_numpy_solve(robot, seed, python_loop):
+def test_compiled_solve_equals_numpy_solve(robot, seed):
     rng = np.random.default_rng(100 + seed)
     T = int(rng.choice([1, 2, 3, 10, 60]))
     problem = problem_near_obstacles(robot, rng, T, int(rng.integers(0, 3)), seed % 2 == 0)
@@ -157,9 +149,7 @@ def problem_through_obstacle(robot, seed: int) -> TrajectoryProblem:
 
 
 @pytest.mark.parametrize("seed", [0, 4, 7, 13, 15, 18])
-def test_compiled_solve_equals_numpy_solve_where_steps_wake_pairs(
-    robot, seed, monkeypatch, python_loop
-):
+def test_compiled_solve_equals_numpy_solve_where_steps_wake_pairs(robot, seed, monkeypatch):
     import amex.plan.optimizer.numpy_assembly as numpy_assembly
 
     woke = []
@@ -179,7 +169,7 @@ def test_compiled_solve_equals_numpy_solve_where_steps_wake_pairs(
 
 
 @pytest.mark.parametrize("seed", range(8))
-def test_newton_on_the_compiled_iteration_equals_newton_on_numpy(robot, seed, python_loop):
+def test_newton_on_the_compiled_iteration_equals_newton_on_numpy(robot, seed):
     """The authors' solver and TCP final velocity, without the proxy term in play (no
     obstacles, or the hinge term in its place)."""
     rng = np.random.default_rng(200 + seed)

@@ -63,7 +63,7 @@ def random_problem(robot, rng, T: int, k: int) -> TrajectoryProblem:
 
 
 def both_loops(robot, problem, monkeypatch, **kwargs):
-    compiled = opt.solve_trajectory(robot, problem, **kwargs)
+    compiled = opt.solve_trajectory(robot, problem, compiled=True, **kwargs)
     with monkeypatch.context() as m:
         m.setattr(compiled_loop, "ENABLED", False)
         python = opt.solve_trajectory(robot, problem, **kwargs)
@@ -114,7 +114,7 @@ def test_warm_started_frames_are_used_as_the_python_loop_uses_them(robot, monkey
     """CR's step: the last solution's frames, shifted by a knot, for the same obstacles."""
     rng = np.random.default_rng(11)
     problem = random_problem(robot, rng, 60, 2)
-    first = opt.solve_trajectory(robot, problem, q_init=np.tile(robot.q0, (61, 1)))
+    first = opt.solve_trajectory(robot, problem, q_init=np.tile(robot.q0, (61, 1)), compiled=True)
     frames = first.frames.take(slice(1, 60))
     shifted = TrajectoryProblem(
         first.q[1], problem.v_start, 59, 0.01, problem.goal_pos, problem.goal_axis,
@@ -134,7 +134,7 @@ def test_failures_raise_the_python_loops_errors(robot, monkeypatch):
     for enabled in (True, False):
         monkeypatch.setattr(compiled_loop, "ENABLED", enabled)
         with pytest.raises(SolverError, match="non-finite trajectory cost .* initial guess"):
-            opt.solve_trajectory(robot, problem, q_init=q_init)
+            opt.solve_trajectory(robot, problem, q_init=q_init, compiled=True)
     bad = TrajectoryProblem.prechecked(
         problem.q_start.copy(), problem.v_start, 10, 0.01, problem.goal_pos,
         problem.goal_axis, problem.obstacles, problem.obstacle_radii, problem.costs,
@@ -143,4 +143,4 @@ def test_failures_raise_the_python_loops_errors(robot, monkeypatch):
     for enabled in (True, False):
         monkeypatch.setattr(compiled_loop, "ENABLED", enabled)
         with pytest.raises(SolverError, match="non-finite q_start"):
-            opt.solve_trajectory(robot, bad, q_init=np.tile(robot.q0, (11, 1)))
+            opt.solve_trajectory(robot, bad, q_init=np.tile(robot.q0, (11, 1)), compiled=True)

@@ -54,6 +54,7 @@ def solve_trajectory(
     damping: float = 1e-3,
     init_frames: KnotFrames | None = None,
     assembly: CompiledAssembly | NumpyAssembly | None = None,
+    compiled: bool = False,
 ) -> TrajectorySolution:
     """Minimize the trajectory cost by Levenberg-damped Gauss-Newton.
 
@@ -78,6 +79,10 @@ def solve_trajectory(
             its own, kept between solves); default: a new :class:`CompiledAssembly`. The
             authors' proxy collision term, where in play, runs on :class:`NumpyAssembly`, the
             numpy oracle, which gives the same numbers (:func:`~.assembly.assembly_for`).
+        compiled: run the whole solve as one compiled call where it can
+            (:mod:`.compiled_loop`: its final-term kinematics round differently from
+            Pinocchio's in the last bits). CR's replanning does; the reference plan, which every
+            method follows, keeps this Python loop and its numbers bit for bit.
 
     Returns:
         The best trajectory found, with the frames at its knots; the cost never increases from
@@ -105,7 +110,7 @@ def solve_trajectory(
         x = free_knots(robot, problem, initial_guess(problem) if q_init is None else q_init)
     if init_frames is not None and init_frames.poses.position.shape[2] != steps:
         init_frames = None
-    if compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
+    if compiled and compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
         return compiled_loop.solve_compiled(
             solve, x, init_frames, max_iterations, tolerance, damping, _INITIAL_DAMPING
         )
