@@ -230,10 +230,8 @@ def _strided_view(views: list[np.ndarray], offset: int, width: int) -> np.ndarra
     addresses = [v.__array_interface__["data"][0] for v in views]
     start = addresses[0] + 8 * offset
     stride = addresses[1] - addresses[0] if len(addresses) > 1 else 8 * width
-    if (
-        stride < 8 * width
-        or stride % 8
-        or any(a - addresses[0] != k * stride for k, a in enumerate(addresses))
+    if stride < 8 * width or stride % 8 or any(
+        a - addresses[0] != k * stride for k, a in enumerate(addresses)
     ):
         return None
     n_doubles = stride // 8 * (len(views) - 1) + width

@@ -321,14 +321,7 @@ class OperationalSpaceController:
             self.col_map.terms_into(state, col)  # type: ignore[union-attr]
         ws = self._ws
         info = kernels.osc_accelerations(
-            ws,
-            state.J,
-            state.v,
-            state.q,
-            state.H,
-            state.acc_drift,
-            self._targets,
-            col,
+            ws, state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col,
             self._active,
         )
         if info != 0:

@@ -28,6 +28,8 @@ from amex.core.errors import ConfigError, ShardError
 SHARD_JSON = "shard.json"
 
 
+
+
 @dataclass(frozen=True)
 class ShardSpec:
     """Which environments a sharded run executes.

@@ -377,14 +377,8 @@ class MPPI(Method):
             InputError: for a non-finite observation (nothing changed).
         """
         require_finite(
-            t=obs.t,
-            q=obs.q,
-            qd=obs.qd,
-            y=obs.y,
-            yd=obs.yd,
-            goal=obs.goal,
-            obstacles=obs.obstacles,
-            obstacle_radii=obs.obstacle_radii,
+            t=obs.t, q=obs.q, qd=obs.qd, y=obs.y, yd=obs.yd, goal=obs.goal,
+            obstacles=obs.obstacles, obstacle_radii=obs.obstacle_radii,
         )  # fmt: skip (before any state changes: a rejected step leaves the method as it was)
         collecting = gc.isenabled()
         gc.disable()

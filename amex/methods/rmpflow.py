@@ -155,11 +155,8 @@ class RMPflowConfig(MethodConfig):
             raise invalid("obstacle_metric_eps, limit_metric_eps, limit_gain_eps, "
                           "obstacle_damping_eps", "0", "> 0")  # fmt: skip
         if not self.damping_inertia + self.posture_metric > 0.0:
-            raise invalid(
-                "damping_inertia",
-                self.damping_inertia,
-                "> 0 (or posture_metric > 0): the summed metric must be invertible",
-            )
+            raise invalid("damping_inertia", self.damping_inertia,
+                          "> 0 (or posture_metric > 0): the summed metric must be invertible")
 
 
 class Resolved(NamedTuple):

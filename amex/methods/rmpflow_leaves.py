@@ -94,9 +94,8 @@ def obstacle_avoidance(
     """
     x = np.maximum(d - margin, 0.0)
     gate = 1.0 - sigmoid(dd / velocity_gate)
-    accel = gain * np.exp(-x / gain_length) - gate * damping * dd / (
-        x / damping_length + damping_eps
-    )
+    accel = gain * np.exp(-x / gain_length) - gate * damping * dd / (x / damping_length
+                                                                      + damping_eps)
     w = metric / (x / metric_length + metric_eps) * np.square(1.0 - x / radius)
     return RMP(np.where(x < radius, gate * w, 0.0), accel)
 

@@ -279,39 +279,9 @@ def rollout_costs(
 
 @numba.njit(cache=True)
 def _rollout_kernel(
-    local,
-    parents,
-    cap_joint,
-    cap_ends,
-    cap_inv_len2,
-    cap_radius,
-    cap_reach,
-    tcp_joint,
-    tcp_point,
-    tcp_axis,
-    lower,
-    upper,
-    speed,
-    metric,
-    w,
-    B,
-    q0,
-    v0,
-    controls,
-    noise,
-    dt,
-    goal_pos,
-    goal_axis,
-    centers,
-    radii,
-    accs,
-    qs,
-    vs,
-    sin,
-    cos,
-    axes,
-    pos,
-    terms,
+    local, parents, cap_joint, cap_ends, cap_inv_len2, cap_radius, cap_reach, tcp_joint,
+    tcp_point, tcp_axis, lower, upper, speed, metric, w, B, q0, v0, controls, noise, dt,
+    goal_pos, goal_axis, centers, radii, accs, qs, vs, sin, cos, axes, pos, terms,
 ):  # type: ignore[no-untyped-def]
     """The compiled :meth:`Rollouts.costs` (arguments unpacked, buffers given); fills ``terms``."""
     S, M, nv = noise.shape
@@ -365,22 +335,9 @@ def _rollout_kernel(
                 e_axis += w[3] * d_axis
                 e_vel += w[4] * speed2
             if collide:
-                e_col += (
-                    w[7]
-                    * dt
-                    * _proxy(
-                        axes,
-                        pos,
-                        col,
-                        cap_joint,
-                        cap_ends,
-                        cap_inv_len2,
-                        cap_radius,
-                        reach2,
-                        centers,
-                        radii,
-                        margin,
-                    )
+                e_col += w[7] * dt * _proxy(
+                    axes, pos, col, cap_joint, cap_ends, cap_inv_len2, cap_radius, reach2,
+                    centers, radii, margin,
                 )
         terms[s, 0], terms[s, 1], terms[s, 2] = e_pos, e_axis, e_vel
         terms[s, 3], terms[s, 4], terms[s, 5] = e_acc, e_col, e_lim

@@ -259,9 +259,8 @@ def build_robot(description: RobotDescription) -> RobotModel:
     if outside.size:
         j = int(outside[0])
         raise ConfigError.invalid(
-            "robot.q0",
-            list(d.q0),
-            f"angles within the joint limits; {d.joints[j]}: [{lo[j]:.4g}, {hi[j]:.4g}] rad",
+            "robot.q0", list(d.q0), f"angles within the joint limits; {d.joints[j]}: "
+            f"[{lo[j]:.4g}, {hi[j]:.4g}] rad"
         )
     capsules, rest = merge_primitives(geom)
     try:

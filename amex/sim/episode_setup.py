@@ -42,6 +42,7 @@ class Probe(Protocol):
         """Called before inner step ``k`` reads the state from ``data``."""
 
 
+
 class Episode:
     """What the loop of one episode works with, built before its first step."""
 
