@@ -26,7 +26,7 @@ Python original.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numba
 import numpy as np
@@ -46,7 +46,6 @@ from amex.plan.optimizer.residuals import GUARD, KnotFrames
 from amex.plan.problem import TrajectorySolution
 
 if TYPE_CHECKING:
-    from amex.plan.optimizer.assembly import CompiledSolve
     from amex.robot import RobotModel
 
 __all__ = ["levenberg_loop", "robot_arrays", "solve_compiled", "tcp_kinematics"]
@@ -363,7 +362,7 @@ def robot_arrays(
 
 
 def solve_compiled(
-    solve: CompiledSolve,
+    solve: Any,
     x: np.ndarray,
     init_frames: KnotFrames | None,
     max_iterations: int,
@@ -372,6 +371,9 @@ def solve_compiled(
     initial_damping: float,
 ) -> TrajectorySolution:
     """:func:`levenberg_loop` from the free knots ``x`` (T, n): the Python loop's solution.
+
+    ``solve``: the :class:`~.assembly.CompiledSolve` of the problem (not imported here: the
+    assembly imports this module).
 
     Raises:
         SolverError: as :func:`~.levenberg.solve_trajectory` raises it.
