@@ -59,8 +59,7 @@ def test_cr_floor_replays_the_compiled_loops_own_calls(monkeypatch):
     monkeypatch.setattr(bench_cr, "_replay", lambda calls: replayed.append(calls) or replay(calls))
     result = bench_cr.cr_floor(1, range(1), ("max_time=0.3",))
     solving = [i for i, n in enumerate(result.iterations) if n > 0]
-    assert solving and all(result.floor_cpu[i] > 0.0 for i in solving)
-    assert all(0.0 < result.floor_cpu[i] < 10 * result.step_cpu[i] for i in solving)
+    assert solving and all(result.floor_cpu[i] > 0.0 for i in solving)  # (no time compared)
     functions = {fn for calls in replayed for fn, _, _ in calls}
     assert tcp_kinematics in functions and lapack.dpbsv in functions
     assert not functions & {pin.computeJointJacobians, pin.getFrameJacobian}

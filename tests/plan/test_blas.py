@@ -17,8 +17,7 @@ from amex.plan import optimizer as opt
 from amex.plan.optimizer import assembly, blas, compiled_loop
 from amex.plan.optimizer.assembly import CompiledAssembly
 from amex.plan.optimizer.iteration_kernels import final_products
-from amex.plan.problem import TrajectoryCosts
-from amex.plan.weights import CollisionWeights
+from tests.plan.problems import problem_near_obstacles
 
 pytestmark = pytest.mark.skipif(not blas.BOUND, reason="numpy is not built on its OpenBLAS")
 
@@ -81,20 +80,7 @@ def test_fused_solve_equals_the_python_path(robot, seed, monkeypatch):
     monkeypatch.setattr(compiled_loop, "ENABLED", False)  # its kinematics: test_compiled_loop
     rng = np.random.default_rng(40 + seed)
     T = int(rng.choice([1, 2, 10, 60]))
-    tcp = robot.tcp_pose(robot.q0).translation
-    k = int(rng.integers(0, 3))
-    weights = CollisionWeights(collision=10.0, collision_margin=0.05)
-    problem = opt.TrajectoryProblem(
-        q_start=robot.q0 + rng.normal(scale=0.1, size=robot.nv),
-        v_start=rng.normal(scale=0.1, size=robot.nv),
-        steps=T,
-        dt=0.01,
-        goal_pos=tcp + rng.normal(scale=0.2, size=3),
-        goal_axis=np.array([0.0, 0.0, -1.0]),
-        obstacles=tcp + rng.normal(scale=0.15, size=(k, 3)),
-        obstacle_radii=rng.uniform(0.03, 0.1, k),
-        costs=TrajectoryCosts(weights),
-    )
+    problem = problem_near_obstacles(robot, rng, T, int(rng.integers(0, 3)), seed % 2 == 0)
     q_init = robot.q0 + rng.normal(scale=0.3, size=(T + 1, robot.nv))
     fused = opt.solve_trajectory(
         robot, problem, q_init=q_init, max_iterations=8, assembly=CompiledAssembly(robot)

@@ -21,6 +21,7 @@ from amex.plan.optimizer.compiled_loop import tcp_kinematics
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
 from amex.plan.weights import CollisionWeights
 from amex.robot import load_robot
+from tests.plan.problems import problem_near_obstacles
 
 pytestmark = pytest.mark.skipif(not blas.BOUND, reason="numpy is not built on its OpenBLAS")
 
@@ -45,23 +46,6 @@ def test_tcp_kinematics_are_pinocchios(name):
         assert not np.array_equal(J, np.zeros_like(J))
 
 
-def random_problem(robot, rng, T: int, k: int) -> TrajectoryProblem:
-    tcp = robot.tcp_pose(robot.q0).translation
-    weights = CollisionWeights(collision=10.0, collision_margin=0.05)
-    metric = tuple(rng.uniform(0.5, 2.0, robot.nv)) if rng.random() < 0.5 else ()
-    return TrajectoryProblem(
-        q_start=robot.q0 + rng.normal(scale=0.1, size=robot.nv),
-        v_start=rng.normal(scale=0.1, size=robot.nv),
-        steps=T,
-        dt=0.01,
-        goal_pos=tcp + rng.normal(scale=0.2, size=3),
-        goal_axis=np.array([0.0, 0.0, -1.0]),
-        obstacles=tcp + rng.normal(scale=0.15, size=(k, 3)),
-        obstacle_radii=rng.uniform(0.03, 0.1, k),
-        costs=TrajectoryCosts(weights, metric),
-    )
-
-
 def both_loops(robot, problem, monkeypatch, **kwargs):
     compiled = opt.solve_trajectory(robot, problem, compiled=True, **kwargs)
     with monkeypatch.context() as m:
@@ -74,7 +58,7 @@ def both_loops(robot, problem, monkeypatch, **kwargs):
 def test_the_compiled_loop_solves_as_the_python_loop(robot, seed, monkeypatch):
     rng = np.random.default_rng(300 + seed)
     T, k = int(rng.choice([2, 3, 10, 60, 200])), int(rng.integers(0, 3))
-    problem = random_problem(robot, rng, T, k)
+    problem = problem_near_obstacles(robot, rng, T, k, seed % 2 == 0)
     q_init = robot.q0 + rng.normal(scale=0.1, size=(T + 1, robot.nv))
     a, b = both_loops(robot, problem, monkeypatch, q_init=q_init, max_iterations=8)
     assert (a.iterations, a.converged) == (b.iterations, b.converged)
@@ -113,7 +97,7 @@ def test_the_compiled_loop_wakes_pairs_as_the_python_loop(robot, seed, monkeypat
 def test_warm_started_frames_are_used_as_the_python_loop_uses_them(robot, monkeypatch):
     """CR's step: the last solution's frames, shifted by a knot, for the same obstacles."""
     rng = np.random.default_rng(11)
-    problem = random_problem(robot, rng, 60, 2)
+    problem = problem_near_obstacles(robot, rng, 60, 2, True)
     first = opt.solve_trajectory(robot, problem, q_init=np.tile(robot.q0, (61, 1)), compiled=True)
     frames = first.frames.take(slice(1, 60))
     shifted = TrajectoryProblem(
@@ -128,7 +112,7 @@ def test_warm_started_frames_are_used_as_the_python_loop_uses_them(robot, monkey
 @pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
 def test_failures_raise_the_python_loops_errors(robot, monkeypatch):
     rng = np.random.default_rng(2)
-    problem = random_problem(robot, rng, 10, 1)
+    problem = problem_near_obstacles(robot, rng, 10, 1, False)
     q_init = np.tile(robot.q0, (11, 1))
     q_init[5, 2] = np.inf  # a non-finite initial guess: its cost
     for enabled in (True, False):

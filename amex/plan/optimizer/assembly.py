@@ -23,7 +23,7 @@ the compiled steps.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -366,15 +366,16 @@ class CompiledSolve:
             Jtr = J_fin.T @ point.r_fin
         return _new(Linearized, (J_fin.T @ J_fin, Jtr, first, J_col))
 
-    def system(
+    def system_terms(
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The damped step's band ``H + G + lambda I`` and right-hand side ``-g`` (buffers)."""
-        c, size = self.constants, point.r_acc.size
-        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
-        damped_system(
-            band,
-            rhs,
+    ) -> tuple[Any, ...]:
+        """The damped system's terms after the band and right-hand side, in the kernels' order.
+
+        :func:`~.assembly_kernels.damped_system` and :func:`~.iteration_kernels.damped_solve`
+        take them after their two buffers.
+        """
+        c = self.constants
+        return (
             c.band_scale,
             c.metric,
             model.final_JtJ,
@@ -390,6 +391,13 @@ class CompiledSolve:
             woken,
             lam,
         )
+
+    def system(
+        self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The damped step's band ``H + G + lambda I`` and right-hand side ``-g`` (buffers)."""
+        band, rhs = self.assembly.buffers(2 * self.n + 1, point.r_acc.size)
+        damped_system(band, rhs, *self.system_terms(point, model, woken, lam))
         return band, rhs
 
     def damped_step(
@@ -407,26 +415,8 @@ class CompiledSolve:
     def _fused_step(
         self, point: Iterate, model: Linearized, woken: np.ndarray, lam: float
     ) -> np.ndarray:
-        c, size = self.constants, point.r_acc.size
-        band, rhs = self.assembly.buffers(2 * self.n + 1, size)
-        info = damped_solve(
-            band,
-            rhs,
-            c.band_scale,
-            c.metric,
-            model.final_JtJ,
-            model.final_Jtr,
-            model.final_first,
-            point.r_acc,
-            c.s_acc2,
-            point.cap,
-            point.obs,
-            point.knot,
-            model.J_col,
-            point.r_near,
-            woken,
-            lam,
-        )
+        band, rhs = self.assembly.buffers(2 * self.n + 1, point.r_acc.size)
+        info = damped_solve(band, rhs, *self.system_terms(point, model, woken, lam))
         if info == 0:
             return rhs
         self.raise_cholesky(info)

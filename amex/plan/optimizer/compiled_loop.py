@@ -214,9 +214,7 @@ def levenberg_loop(
         x, r_acc, v_last, r_fin, J_fin, frames, fixed, problem, robot, known, use_known, reuse_dist
     )
     cost = point[0]
-    q = np.empty((T + 1, n))
-    if not math.isfinite(cost):
-        return _BAD_START, cost, q, cost, 0, False, point[1], point[2], point[3], point[4]
+    outcome, value = (_SOLVED, 0.0) if math.isfinite(cost) else (_BAD_START, cost)
     lam = max(damping, initial_damping)
     converged, iterations = False, 0
     C, k = robot[6].shape[0], problem[5].shape[0]  # capsules, obstacles
@@ -226,7 +224,7 @@ def levenberg_loop(
     JtJ, Jtr = np.empty((0, 0)), np.empty(0)
     J_col = np.empty((0, n))
     first = n * T - 2 * n
-    while iterations < max_iterations and not converged:
+    while outcome == _SOLVED and iterations < max_iterations and not converged:
         iterations += 1
         cap, obs, knot, r_near = point[5], point[6], point[7], point[8]
         if not linearized:  # CompiledSolve.linearize
@@ -259,19 +257,8 @@ def levenberg_loop(
             lam,
         )
         if info != 0:
-            outcome = _NOT_DEFINITE if info > 0 else _ILLEGAL
-            return (
-                outcome,
-                float(info),
-                q,
-                cost,
-                iterations,
-                False,
-                point[1],
-                point[2],
-                point[3],
-                point[4],
-            )
+            outcome, value = (_NOT_DEFINITE if info > 0 else _ILLEGAL), float(info)
+            break
         s = 0 if current_set != 0 else 1
         small = take_step(
             x, rhs, q_start, v_start, dt, s_acc, tolerance, knots[s], accs[s], velocities[s]
@@ -292,18 +279,8 @@ def levenberg_loop(
         )
         new_cost = trial[0]
         if not math.isfinite(new_cost):
-            return (
-                _BAD_TRIAL,
-                new_cost,
-                q,
-                cost,
-                iterations,
-                False,
-                point[1],
-                point[2],
-                point[3],
-                point[4],
-            )
+            outcome, value = _BAD_TRIAL, new_cost
+            break
         if new_cost <= cost:
             converged = small or cost - new_cost <= tolerance * cost
             point, cost, current_set, linearized = trial, new_cost, s, False
@@ -316,9 +293,10 @@ def levenberg_loop(
                 woke = wake_pairs(cap, obs, knot, r_near, trial[3], margin, s_col, woken)
             if not woke:
                 lam *= 10.0
+    q = np.empty((T + 1, n))
     q[0] = q_start
     q[1:] = x
-    return _SOLVED, 0.0, q, cost, iterations, converged, point[1], point[2], point[3], point[4]
+    return outcome, value, q, cost, iterations, converged, point[1], point[2], point[3], point[4]
 
 
 def robot_arrays(

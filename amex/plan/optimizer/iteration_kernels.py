@@ -18,6 +18,8 @@ for a single column); the caller keeps the numpy path otherwise.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
 
@@ -82,45 +84,13 @@ def final_products(J_fin: np.ndarray, r_fin: np.ndarray) -> tuple[np.ndarray, np
 
 
 @numba.njit(cache=True)
-def damped_solve(
-    band: np.ndarray,
-    rhs: np.ndarray,
-    scale: float,
-    metric: np.ndarray,
-    final_JtJ: np.ndarray,
-    final_Jtr: np.ndarray,
-    final_first: int,
-    r_acc: np.ndarray,
-    s_acc2: np.ndarray,
-    cap: np.ndarray,
-    obs: np.ndarray,
-    knot: np.ndarray,
-    J_col: np.ndarray,
-    r_near: np.ndarray,
-    woken: np.ndarray,
-    lam: float,
-) -> int:
+def damped_solve(band: np.ndarray, rhs: np.ndarray, *terms: Any) -> int:
     """:func:`~.assembly_kernels.damped_system` into ``band`` and ``rhs``, then ``dpbsv``.
 
-    ``rhs`` holds the step ``dx`` afterwards; returns LAPACK's ``info`` (0: solved; > 0: the
-    leading minor of that order is not positive definite).
+    ``terms``: the system's terms after its two buffers, in ``damped_system``'s order
+    (:meth:`~.assembly.CompiledSolve.system_terms`). ``rhs`` holds the step ``dx`` afterwards;
+    returns LAPACK's ``info`` (0: solved; > 0: the leading minor of that order is not positive
+    definite).
     """
-    damped_system(
-        band,
-        rhs,
-        scale,
-        metric,
-        final_JtJ,
-        final_Jtr,
-        final_first,
-        r_acc,
-        s_acc2,
-        cap,
-        obs,
-        knot,
-        J_col,
-        r_near,
-        woken,
-        lam,
-    )
+    damped_system(band, rhs, *terms)
     return dpbsv(band, rhs)
