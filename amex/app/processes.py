@@ -25,7 +25,7 @@ from pathlib import Path
 from types import FrameType
 
 from amex.app.reaper import MARK
-from amex.core.errors import Interrupted
+from amex.core.errors import Interrupted, stop_behind
 
 #: Environment variable holding the pid of the process that launched a sweep.
 LAUNCHER_PID = MARK
@@ -34,22 +34,6 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 def _raise_interrupted(signum: int, frame: FrameType | None) -> None:
     raise Interrupted(signum)
-
-
-def stop_behind(error: BaseException) -> BaseException | None:
-    """The stop that ``error`` was raised from, if any (module notes).
-
-    A stop is a :class:`KeyboardInterrupt` (such as :class:`Interrupted`) or a ``SystemExit``
-    raised by a signal handler (submitit's requeue).
-    """
-    seen: set[int] = set()
-    cause: BaseException | None = error
-    while cause is not None and id(cause) not in seen:
-        if isinstance(cause, KeyboardInterrupt | SystemExit):
-            return cause
-        seen.add(id(cause))
-        cause = cause.__cause__ or cause.__context__
-    return None
 
 
 @contextlib.contextmanager

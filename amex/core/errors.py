@@ -129,6 +129,26 @@ class Interrupted(KeyboardInterrupt):
         return (Interrupted, (self.signum,))
 
 
+def stop_behind(error: BaseException) -> BaseException | None:
+    """The stop that ``error`` was raised from, if any.
+
+    A stop is a :class:`KeyboardInterrupt` (such as :class:`Interrupted`) or a ``SystemExit``
+    raised by a signal handler (submitit's requeue). A stop whose handler ran while a compiled
+    function was returning (Numba's boxing of its results can run Python code, a garbage
+    collection) reaches Python as a ``SystemError`` ("returned a result with an exception set")
+    caused by it; ``amex.app.processes.signals_raise`` and the episode's method step re-raise
+    the stop itself.
+    """
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, KeyboardInterrupt | SystemExit):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
+
+
 class JobFailed(BaseException):
     """A job stopped with an :class:`AmexError`, carried past Hydra's job runner (module notes).
 

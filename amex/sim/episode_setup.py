@@ -18,7 +18,7 @@ import numpy as np
 from amex.control.collision import CollisionModel
 from amex.control.disturbance import DisturbanceConfig, make_inner_controller
 from amex.control.osc import Command, OperationalSpaceController, OSCGains
-from amex.core.errors import AmexError, SimulationError
+from amex.core.errors import AmexError, SimulationError, stop_behind
 from amex.core.types import command_problem
 from amex.methods.base import Method, Observation
 from amex.robot import RobotModel
@@ -178,6 +178,9 @@ def method_step(
     except AmexError:
         raise
     except (Exception, SystemExit) as error:
+        stop = stop_behind(error) if isinstance(error, SystemError) else None
+        if stop is not None:  # a stop signal that landed in a compiled call: the run's to handle
+            raise stop from None
         text = f"{type(error).__name__}: {error}".strip()[:300]
         raise SimulationError(f"method: {text}", text) from error
     if method.finished:

@@ -256,3 +256,29 @@ def test_a_system_error_that_wraps_no_stop_stays_an_error():
             raise ValueError("inner")
         except ValueError as e:
             raise SystemError("no stop") from e
+
+
+@pytest.mark.parametrize("stop", [Interrupted(signal.SIGTERM), Interrupted(signal.SIGINT)])
+def test_a_stop_wrapped_in_a_methods_step_stops_the_run_not_the_episode(stop):
+    # Found by the preempted SLURM test once CR's solve was one compiled call: the SIGTERM that
+    # landed in it came out of the method's step as a SystemError, which the episode recorded as
+    # the method's failure (and the job ran on); the stop is the run's to handle.
+    from amex.core.errors import SimulationError
+    from amex.sim.episode_setup import method_step
+
+    class Wrapped:
+        finished = False
+
+        def step(self, obs):
+            _returned_with_stop_set(stop)
+
+    with pytest.raises(Interrupted) as info:
+        method_step(Wrapped(), None, False, None, 7)  # type: ignore[arg-type]
+    assert info.value is stop
+
+    class Failing(Wrapped):
+        def step(self, obs):
+            raise SystemError("a plugin's own")  # no stop behind it: the episode's failure
+
+    with pytest.raises(SimulationError, match="SystemError: a plugin's own"):
+        method_step(Failing(), None, False, None, 7)  # type: ignore[arg-type]

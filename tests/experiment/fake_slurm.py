@@ -29,6 +29,7 @@ import re
 import signal
 import subprocess
 import sys
+import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -154,11 +155,34 @@ def _run_array(script: str, tasks: list[str]) -> None:
             (_state() / f"{task}.pid").write_text(str(proc.pid))
             _set(task, "RUNNING")
             code = proc.wait()
+            _wait_for_group(proc.pid)  # SLURM reruns a task once all its processes are gone
             if state.read_text() == "RUNNING":
                 _set(task, "COMPLETED" if code == 0 else "FAILED")
 
     with ThreadPoolExecutor(PARALLEL) as pool:
         list(pool.map(one, tasks))
+
+
+def _alive_in_group(group: int) -> bool:
+    """Whether a process of process group ``group`` is still running (zombies aside)."""
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, ValueError, IndexError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[2]) == group and fields[0] != "Z":  # state, ppid, pgrp
+                return True
+    return False
+
+
+def _wait_for_group(group: int, timeout: float = 120.0) -> None:
+    """Wait until every process of the task's session has ended (at most ``timeout`` s).
+
+    A task's script is its session's leader: it can end before the job it started has finished
+    handling SLURM's SIGTERM (amex-run closes its records on it). SLURM requeues a task only
+    once all of its processes have ended, and so does this stand-in.
+    """
+    deadline = time.monotonic() + timeout
+    while _alive_in_group(group) and time.monotonic() < deadline:
+        time.sleep(0.02)
 
 
 def _task_id() -> str:
