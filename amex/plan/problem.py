@@ -198,17 +198,7 @@ class TrajectoryProblem:
         Raises:
             SolverError: naming the field with a bad shape or a non-finite value.
         """
-        TrajectoryProblem(
-            self.q_start,
-            self.v_start,
-            self.steps,
-            self.dt,
-            self.goal_pos,
-            self.goal_axis,
-            self.obstacles,
-            self.obstacle_radii,
-            self.costs,
-        )
+        TrajectoryProblem(*(getattr(self, f.name) for f in fields(self)))
 
 
 #: The array fields of :class:`TrajectoryProblem`, in the order of their shape checks.

@@ -258,6 +258,7 @@ class CompiledSolve:
             r_acc, v_last = np.empty_like(x), np.empty(n)
             start_residuals(x, self.q_start, self.v_start, self.dt, c.s_acc, r_acc, v_last)
         model, data, fid = self.assembly.pinocchio
+        cost: float | None = None
         if c.tcp_velocity:
             q_prev = x[-2] if T > 1 else self.q_start
             w = c.final_weights
@@ -269,36 +270,20 @@ class CompiledSolve:
             r_fin, J_fin = (np.empty(9 + n), np.empty((9 + n, 2 * n))) if final is None else final
             Jz, goal, axis = self.assembly.Jz, problem.goal_pos, problem.goal_axis
             R, p, w = oMf.rotation, oMf.translation, c.final_weights
-            if self.fused:  # the lines below in one call, numpy's routines included
+            if self.fused:  # the lines below and the cost in one call, numpy's routines included
                 rows = self.assembly.rows
                 cost = final_cost(
                     J, R, p, v_last, goal, axis, w, self.dt, rows, Jz, r_fin, J_fin, r_acc
                 )
-                if T == 1:  # q_{T-1} is the fixed start
-                    J_fin = J_fin[:, n:]
-                if not self.collides:
-                    return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, None, None, *_NONE))
-                return self._collision_terms(x, r_acc, r_fin, J_fin, cost, known)
-            Jwv = J[3:].dot(v_last)
-            final_terms_joint(J, R, p, v_last, Jwv, goal, axis, w, self.dt, Jz, r_fin, J_fin)
-            np.multiply(Jz.dot(v_last), c.w3, out=r_fin[c.rate_rows])  # w[3] (Jz @ v)
+            else:
+                Jwv = J[3:].dot(v_last)
+                final_terms_joint(J, R, p, v_last, Jwv, goal, axis, w, self.dt, Jz, r_fin, J_fin)
+                np.multiply(Jz.dot(v_last), c.w3, out=r_fin[c.rate_rows])  # w[3] (Jz @ v)
         if T == 1:  # q_{T-1} is the fixed start
             J_fin = J_fin[:, n:]
-        flat_acc = r_acc.reshape(-1)
-        cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ calls it
-        return self._collision_terms(x, r_acc, r_fin, J_fin, cost, known)
-
-    def _collision_terms(
-        self,
-        x: np.ndarray,
-        r_acc: np.ndarray,
-        r_fin: np.ndarray,
-        J_fin: np.ndarray,
-        cost: float,
-        known: KnotFrames | None,
-    ) -> Iterate:
-        """The iterate at ``x`` given its other terms: the collision pairs' residuals added."""
-        problem, c, T = self.problem, self.constants, x.shape[0]
+        if cost is None:
+            flat_acc = r_acc.reshape(-1)
+            cost = float(flat_acc.dot(flat_acc) + r_fin.dot(r_fin))  # numpy's ddot, as @ does
         if not self.collides:
             return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, None, None, *_NONE))
         kin = self.assembly.kinematics
