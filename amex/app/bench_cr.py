@@ -221,8 +221,34 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         result.iterations.append(iterations)
         return out
 
+    loop_solve = compiled_loop.ReplanLoop.solve
+
+    def replanned(loop: Any, x: Any, frames: Any, first: int, *arrays: Any) -> Any:
+        """CR's usual step (one compiled call): recorded as the same solve_trajectory call."""
+        out = loop_solve(loop, x, frames, first, *arrays)
+        if out is not None:
+            q_start, v_start, goal_pos, goal_axis, obstacles, radii = arrays
+            steps = x.shape[0]
+            problem = optimizer.TrajectoryProblem(
+                q_start, v_start, steps, loop.dt, goal_pos, goal_axis, obstacles, radii,
+                loop.costs,
+            )  # fmt: skip
+            iterations, tolerance, damping = loop.settings[:3]
+            kwargs = {
+                "q_init": np.concatenate((q_start[None], x)),
+                "max_iterations": iterations,
+                "tolerance": tolerance,
+                "damping": damping,
+                "init_frames": None if frames is None else frames.take(slice(first, first + steps)),
+                "assembly": loop.assembly,
+                "compiled": True,
+            }
+            solves.append((solvers["solve_trajectory"], (method.robot, problem), kwargs))
+        return out
+
     method.step = timed  # type: ignore[method-assign]
     try:
+        compiled_loop.ReplanLoop.solve = replanned  # type: ignore[method-assign]
         for name in solvers:
             setattr(optimizer, name, captured(name))
         for env in envs:
@@ -231,6 +257,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
             )
             run_episode(context.robot, method, scenario, run.gains, run.loop)
     finally:
+        compiled_loop.ReplanLoop.solve = loop_solve  # type: ignore[method-assign]
         for name, solver in solvers.items():
             setattr(optimizer, name, solver)
     return result

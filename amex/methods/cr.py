@@ -37,7 +37,7 @@ _F64 = np.dtype(np.float64)
 CR_COLLISION_COSTS = ("auto", "hinge", "proxy")
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
-    from amex.plan.optimizer import KnotFrames
+    from amex.plan.optimizer import KnotFrames, TrajectorySolution
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
 
@@ -209,6 +209,11 @@ class CR(Method):
         # the command's stride on a replanned horizon: q(t), q(t + dt / 2), q(t + dt)
         self._stride = dt / self.knot_dt / 2.0
         self._whole = abs(self._stride - round(self._stride)) <= 1e-9  # whole knots (whole_knots)
+        # a shift by whole knots solved as one compiled call with its target (ReplanLoop)
+        settings = (self.iterations, self.tolerance, self.damping, optimizer.INITIAL_DAMPING)
+        target = (0.0 if self._whole else self._stride, float(dt))
+        loop = optimizer.ReplanLoop(self.assembly, self.costs, self.knot_dt, settings, target)
+        self._loop = loop if loop.usable else None
         self.restart()
 
     # ----------------------------------------------------------------------------- state
@@ -218,6 +223,7 @@ class CR(Method):
         self._frames: KnotFrames | None = None  # its frames at knots 1..T (the solver's)
         self._knots_t0, self._knots_dt = 0.0, self.reference_dt  # its first knot's time, spacing
         self._status = CRStatus("hold", 0, 0, math.nan, False, 0.0)
+        self._target: JointTarget | None = None  # the last solve's, if it computed it
 
     @property
     def knots(self) -> np.ndarray:
@@ -251,23 +257,47 @@ class CR(Method):
         if mode == "hold":
             self._status = CRStatus(mode, 0, 0, math.nan, False, 0.0)
             return self._status
-        optimizer = self._optimizer
+        offset = (obs.t - self._knots_t0) / self._knots_dt
+        stride = self.knot_dt / self._knots_dt
+        rows = whole_knot_rows(len(self._knots), offset, stride, steps + 1)
         # An Observation's arrays are finite and new at each step: kept, not copied and checked
-        # again. The obstacles are copied: the solution's frames keep them, to compare with
-        # the next step's. Anything else goes through the checks.
-        o, r, q, v = obs.obstacles, obs.obstacle_radii, obs.q, obs.qd
+        # again (the solve copies the obstacles its frames keep, to compare with the next
+        # step's). Anything else goes through the checks.
+        o, r, q, v, goal = obs.obstacles, obs.obstacle_radii, obs.q, obs.qd, obs.goal
         arrays = type(o) is type(r) is type(q) is type(v) is np.ndarray
-        if arrays and o.dtype is r.dtype is q.dtype is v.dtype is _F64 and o.shape[1:] == (3,):
+        arrays = arrays and o.dtype is r.dtype is q.dtype is v.dtype is _F64 and o.shape[1:] == (3,)
+        solved = None
+        if type(rows) is slice and arrays and self._loop is not None:  # CR's usual step
+            x = self._knots[rows.start + 1 : rows.stop]  # the free knots (a view)
+            solved = self._loop.solve(x, self._frames, rows.start, q, v, goal[:3], goal[3:6], o, r)
+        if solved is None:
+            solution, self._target = self._solve(obs, steps, rows, arrays), None
+        else:
+            solution, q_mid, qd = solved
+            self._target = _new(JointTarget, (q_mid, qd)) if len(q_mid) else None
+        self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
+        self._frames = solution.frames
+        took = time.perf_counter() - tic
+        fields = (mode, steps, solution.iterations, solution.cost, solution.converged, took)
+        self._status = _new(CRStatus, fields)  # CRStatus(*fields)
+        return self._status
+
+    def _solve(
+        self, obs: Observation, steps: int, rows: slice | np.ndarray | None, arrays: bool
+    ) -> TrajectorySolution:
+        """:func:`~amex.plan.optimizer.solve_trajectory` on the step's problem (module notes)."""
+        optimizer = self._optimizer
+        o, r, q, v = obs.obstacles, obs.obstacle_radii, obs.q, obs.qd
+        if arrays:
             args = (q, v, steps, self.knot_dt, obs.goal[:3], obs.goal[3:6], o.copy(), r.copy())
             problem = optimizer.TrajectoryProblem.prechecked(*args, self.costs)
         else:
             args = (q, v, steps, self.knot_dt, obs.goal[:3], obs.goal[3:6], o, r)
             problem = optimizer.TrajectoryProblem(*args, self.costs)
-        offset = (obs.t - self._knots_t0) / self._knots_dt
-        stride = self.knot_dt / self._knots_dt
-        rows = whole_knot_rows(len(self._knots), offset, stride, steps + 1)
         frames = None
         if rows is None:
+            offset = (obs.t - self._knots_t0) / self._knots_dt
+            stride = self.knot_dt / self._knots_dt
             q_init = resample_knots(self._knots, offset, stride, steps + 1)
         else:  # a shift by whole knots: the last solution's frames at them are still right
             q_init = self._knots[rows]  # a view for a slice: solutions are new arrays
@@ -276,7 +306,7 @@ class CR(Method):
                     frames = self._frames.take(slice(rows.start, rows.stop - 1))
                 elif rows[1] >= 1:
                     frames = self._frames.take(_columns(rows[1:] - 1))
-        solution = optimizer.solve_trajectory(
+        return optimizer.solve_trajectory(  # type: ignore[no-any-return]
             self.robot,
             problem,
             q_init=q_init,
@@ -287,18 +317,15 @@ class CR(Method):
             assembly=self.assembly,
             compiled=True,  # one compiled call (the reference plan keeps the Python loop)
         )
-        self._knots, self._knots_t0, self._knots_dt = solution.q, float(obs.t), self.knot_dt
-        self._frames = solution.frames
-        took = time.perf_counter() - tic
-        fields = (mode, steps, solution.iterations, solution.cost, solution.converged, took)
-        self._status = _new(CRStatus, fields)  # CRStatus(*fields)
-        return self._status
 
     def target(self) -> JointTarget:
         """Joint target ``(q*, q_dot*)`` of the current plan (module notes), shapes (n,)."""
         knots = self._knots
         if self._status.mode != "shrink":  # hold, or the tail's final approach
             return JointTarget(knots[-1].copy(), np.zeros(knots.shape[1]))
+        if self._target is not None:  # computed with the solve (ReplanLoop), taken once
+            target, self._target = self._target, None
+            return target
         stride = self._stride  # a shrink step's knots are knot_dt apart
         if self._whole or len(knots) < 2:
             q = resample_knots(knots, 0.0, stride, 3)

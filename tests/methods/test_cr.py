@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import math
 import os
 import pickle
 import subprocess
@@ -21,7 +22,7 @@ from amex.control.collision import CollisionModel
 from amex.core.errors import ConfigError, InputError, SolverError
 from amex.core.scaling import to_scene_units
 from amex.experiment.config import RunConfig
-from amex.experiment.runner import prepare, run_one
+from amex.experiment.runner import prepare, run_one, setup
 from amex.methods import CR, METHODS, CRConfig
 from amex.methods.base import Observation
 from amex.plan.knots import resample_knots, shift_warm_start
@@ -341,3 +342,33 @@ def test_amex_run_task3_with_cr(tmp_path):
         rows = list(csv.DictReader(f))
     assert [r["method"] for r in rows] == ["cr", "cr"]
     assert all(r["success"] == "1" and not r["failure"] for r in rows)
+
+
+@pytest.mark.parametrize("task", [2, 3])
+def test_the_one_call_step_commands_as_the_solver_path(context, task):
+    """CR's usual step (ReplanLoop: the solve and its target in one call) is solve_trajectory's.
+
+    The same observations, one CR on each path: the same commands and statuses, bit for bit.
+    """
+    config, ctx = context
+    run = setup(dataclasses.replace(config, task=task, max_time=1.5), ctx)
+    one_call = run.method(ctx.plan, run.params, run.outer_dt, ctx.robot)
+    solver_path = run.method(ctx.plan, run.params, run.outer_dt, ctx.robot)
+    solver_path._loop = None
+    assert one_call._loop is not None
+    steps, taken = one_call.step, []
+
+    def step(obs):
+        command = steps(obs)
+        taken.append((obs, command, one_call.status))
+        return command
+
+    one_call.step = step
+    scenario = make_scenario(run.scene, task, run.seed, 0, ctx.plan.y[0, :3], ctx.plan.duration)
+    run_episode(ctx.robot, one_call, scenario, run.gains, run.loop)
+    assert len(taken) > 100
+    for obs, command, status in taken:
+        again = solver_path.step(obs)
+        assert np.array_equal(again.q, command.q) and np.array_equal(again.qd, command.qd)
+        assert solver_path.status[:5] == status[:5] or math.isnan(status.cost)
+    assert np.array_equal(solver_path.knots, one_call.knots)

@@ -51,7 +51,7 @@ from amex.plan.optimizer.final_terms import final_terms, final_weights
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import GUARD, KnotFrames, acceleration_scale
-from amex.plan.problem import TrajectoryProblem
+from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
 from amex.robot import RobotModel
 
 __all__ = ["CompiledAssembly", "CompiledSolve", "Iterate", "Linearized", "assembly_for"]
@@ -185,14 +185,17 @@ class CompiledAssembly:
 
     def begin(self, problem: TrajectoryProblem) -> CompiledSolve:
         """The solve of ``problem``."""
-        costs, dt = problem.costs, float(problem.dt)
+        return CompiledSolve(self, problem, self.constants(problem.costs, float(problem.dt)))
+
+    def constants(self, costs: TrajectoryCosts, dt: float) -> _Constants:
+        """What ``costs`` and the knot spacing ``dt`` fix, worked out once for the last pair."""
         known = self._constants
         if known is None or known[0] is not costs or known[1] != dt:
-            known = self._constants = (costs, dt, self._work_out(problem))
-        return CompiledSolve(self, problem, known[2])
+            known = self._constants = (costs, dt, self._work_out(costs, dt))
+        return known[2]
 
-    def _work_out(self, problem: TrajectoryProblem) -> _Constants:
-        c, dt, n = problem.costs, float(problem.dt), self.robot.model.nv
+    def _work_out(self, c: TrajectoryCosts, dt: float) -> _Constants:
+        n = self.robot.model.nv
         s_acc = acceleration_scale(c, dt)
         w = c.weights
         s_acc_n = np.full(n, s_acc) if isinstance(s_acc, float) else s_acc

@@ -25,7 +25,9 @@ Python original.
 
 from __future__ import annotations
 
+import ctypes
 import math
+from functools import cache
 from typing import TYPE_CHECKING, Any
 
 import numba
@@ -39,8 +41,9 @@ from amex.plan.kinematics_kernels import (
     near_pairs,
     pair_gradients,
 )
-from amex.plan.optimizer.assembly_kernels import start_residuals, take_step, wake_pairs
-from amex.plan.optimizer.blas import ddot
+from amex.plan.knots import midpoint_target
+from amex.plan.optimizer.assembly_kernels import equal, start_residuals, take_step, wake_pairs
+from amex.plan.optimizer.blas import BOUND, ddot
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
 from amex.plan.optimizer.residuals import GUARD, KnotFrames
 from amex.plan.problem import TrajectorySolution
@@ -48,13 +51,37 @@ from amex.plan.problem import TrajectorySolution
 if TYPE_CHECKING:
     from amex.robot import RobotModel
 
-__all__ = ["levenberg_loop", "robot_arrays", "solve_compiled", "tcp_kinematics"]
+__all__ = [
+    "ReplanLoop",
+    "levenberg_loop",
+    "retain_freed_memory",
+    "robot_arrays",
+    "solve_compiled",
+    "tcp_kinematics",
+]
 
 #: Whether :func:`~.levenberg.solve_trajectory` runs :func:`levenberg_loop` where it can (the
 #: tests and ``python -m amex.app.bench_cr`` switch it off to run the Python loop beside it).
 ENABLED = True
 #: :func:`levenberg_loop`'s outcomes (its first return value).
 _SOLVED, _BAD_START, _BAD_TRIAL, _NOT_DEFINITE, _ILLEGAL = 0, 1, 2, 3, 4
+_M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
+_TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
+
+
+@cache
+def retain_freed_memory() -> bool:
+    """Keep glibc from returning freed heap memory to the OS (``mallopt(M_TRIM_THRESHOLD)``).
+
+    An evaluation at 400 knots allocates and frees ~1 MB; with glibc's default trim threshold
+    each one page-faults the heap top in again (docs/planner.md). A process-wide setting with no
+    effect on results, made once; a no-op (False) where mallopt is missing.
+    """
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (AttributeError, OSError, TypeError):
+        return False
+    return bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
 
 
 @numba.njit(cache=True)
@@ -185,13 +212,16 @@ def levenberg_loop(
     settings: tuple,  # type: ignore[type-arg]
     band: np.ndarray,
     rhs: np.ndarray,
+    target: tuple,  # type: ignore[type-arg]
 ) -> tuple:  # type: ignore[type-arg]
     """:func:`~.levenberg.solve_trajectory` from the free knots ``x0`` (T, n), T >= 2.
 
-    Returns ``(outcome, value, q, cost, iterations, converged, axes, pos, distance, offset)``:
-    ``outcome`` 0 (solved) or an error whose ``value`` is the non-finite cost or LAPACK's
-    ``info``; ``q`` the solution with the start as row 0; the frames and distances at its free
-    knots (empty without collision term).
+    Returns ``(outcome, value, q, cost, iterations, converged, axes, pos, distance, offset,
+    q_mid, qd)``: ``outcome`` 0 (solved) or an error whose ``value`` is the non-finite cost or
+    LAPACK's ``info``; ``q`` the solution with the start as row 0; the frames and distances at
+    its free knots (empty without collision term); CR's joint target from ``q``
+    (:func:`~amex.plan.knots.midpoint_target` at ``target = (stride, dt)``; empty for a stride
+    of 0).
     """
     dt, s_acc, scale, metric, s_acc2, w, margin, s_col = fixed
     q_start, v_start, obstacles, collides = problem[0], problem[1], problem[4], problem[6]
@@ -296,7 +326,12 @@ def levenberg_loop(
     q = np.empty((T + 1, n))
     q[0] = q_start
     q[1:] = x
-    return outcome, value, q, cost, iterations, converged, point[1], point[2], point[3], point[4]
+    stride, target_dt = target
+    q_mid, qd = np.empty(n if stride > 0.0 else 0), np.empty(n if stride > 0.0 else 0)
+    if stride > 0.0:
+        midpoint_target(q, stride, target_dt, q_mid, qd)
+    axes, pos, distance, offset = point[1], point[2], point[3], point[4]
+    return outcome, value, q, cost, iterations, converged, axes, pos, distance, offset, q_mid, qd
 
 
 def robot_arrays(
@@ -356,37 +391,13 @@ def solve_compiled(
     Raises:
         SolverError: as :func:`~.levenberg.solve_trajectory` raises it.
     """
-    problem, c, assembly = solve.problem, solve.constants, solve.assembly
-    known: tuple[np.ndarray, ...] = assembly.no_frames
-    use_known = reuse = False
-    if init_frames is not None and solve.collides:
-        poses, dist = init_frames.poses, init_frames.dist
-        use_known = True
-        reuse = dist is not None and solve._same_obstacles(init_frames)
-        if dist is None:
-            dist = CapsuleDistances(known[2], known[3])  # computed again (reuse is False)
-        known = (poses.rotation, poses.position, dist.distance, dist.offset)
-    band, rhs = assembly.buffers(2 * solve.n + 1, solve.n * problem.steps)
-    outcome, value, q, cost, iterations, converged, axes, pos, distance, offset = levenberg_loop(
-        x,
-        c.fixed,
-        (
-            problem.q_start,
-            problem.v_start,
-            problem.goal_pos,
-            problem.goal_axis,
-            problem.obstacles,
-            problem.obstacle_radii,
-            solve.collides,
-        ),
-        assembly.compiled_robot,
-        known,
-        use_known,
-        reuse,
-        (int(max_iterations), float(tolerance), float(damping), float(initial_damping)),
-        band,
-        rhs,
-    )
+    problem, assembly = solve.problem, solve.assembly
+    settings = (int(max_iterations), float(tolerance), float(damping), float(initial_damping))
+    arrays = (problem.q_start, problem.v_start, problem.goal_pos, problem.goal_axis)
+    obstacles = (problem.obstacles, problem.obstacle_radii)
+    out = _run(assembly, solve.constants.fixed, solve.collides, settings, _NO_TARGET, x, 0,
+               init_frames, arrays, obstacles)  # fmt: skip
+    outcome, value = out[0], out[1]
     if outcome == _BAD_START:
         problem.check()  # a non-finite input named, where that is the cause
         raise SolverError(f"non-finite trajectory cost {value} at the initial guess", problem)
@@ -394,10 +405,137 @@ def solve_compiled(
         raise SolverError(f"non-finite trajectory cost {value}", problem)
     if outcome in (_NOT_DEFINITE, _ILLEGAL):
         solve.raise_cholesky(int(value))
+    return _solution(out, solve.collides, obstacles)
+
+
+class ReplanLoop:
+    """:func:`levenberg_loop` for one solve after another of a robot, costs and knot spacing.
+
+    CR's every outer step. What stays from solve to solve (the costs' constants, the robot's
+    arrays, the solver's settings, the target's stride) is put together once, and a solve
+    passes only what changes: the same call :func:`~.levenberg.solve_trajectory` makes with
+    ``compiled=True``, on the same arguments, so the same numbers, without the ~10 us of Python
+    it spends on the problem's objects. :meth:`solve` answers None where that path would not run
+    the loop, or where the loop did not solve: the caller then solves through
+    ``solve_trajectory``, which raises the error with its problem.
+
+    Args:
+        assembly: the robot's :class:`~.assembly.CompiledAssembly` (its buffers and arrays).
+        costs: the problems' costs (:class:`~amex.plan.problem.TrajectoryCosts`).
+        dt: their knot spacing [s].
+        settings: ``(max_iterations, tolerance, damping, initial_damping)``.
+        target: ``(stride, dt)`` of the joint target computed from each solution
+            (:func:`~amex.plan.knots.midpoint_target`; stride 0: none).
+    """
+
+    def __init__(
+        self,
+        assembly: Any,
+        costs: Any,
+        dt: float,
+        settings: tuple[int, float, float, float],
+        target: tuple[float, float] = (0.0, 0.0),
+    ) -> None:
+        retain_freed_memory()
+        c = assembly.constants(costs, dt)
+        self.assembly, self.costs, self.dt = assembly, costs, float(dt)
+        self.fixed, self.collision = c.fixed, c.collision
+        self.settings = (int(settings[0]), *(float(value) for value in settings[1:]))
+        self.target = (float(target[0]), float(target[1]))
+        fused = BOUND and assembly.nv >= 2  # as CompiledSolve.loop decides
+        self.usable = fused and not c.tcp_velocity and costs.collision_cost != "proxy"
+
+    def solve(
+        self,
+        x: np.ndarray,
+        frames: KnotFrames | None,
+        first: int,
+        q_start: np.ndarray,
+        v_start: np.ndarray,
+        goal_pos: np.ndarray,
+        goal_axis: np.ndarray,
+        obstacles: np.ndarray,
+        radii: np.ndarray,
+    ) -> tuple[TrajectorySolution, np.ndarray, np.ndarray] | None:
+        """The solution from the free knots ``x`` (T, n), and its joint target ``(q_mid, qd)``.
+
+        ``frames``: the last solution's, whose free knots ``first .. first + T - 1`` are those of
+        ``x`` (CR's shift by whole knots), or None. The arrays are float64 of the problem's
+        shapes and finite (:meth:`~amex.plan.problem.TrajectoryProblem.prechecked`'s terms); the
+        obstacles are copied where the solution's frames keep them. None: solve through
+        :func:`~.levenberg.solve_trajectory` instead (class notes).
+        """
+        if not (ENABLED and self.usable and x.shape[0] >= 2):
+            return None
+        collides = self.collision and radii.shape[0] > 0
+        if collides:
+            obstacles, radii = obstacles.copy(), radii.copy()
+        kept = (obstacles, radii)
+        arrays = (q_start, v_start, goal_pos, goal_axis)
+        out = _run(self.assembly, self.fixed, collides, self.settings, self.target, x, first,
+                   frames, arrays, kept)  # fmt: skip
+        if out[0] != _SOLVED:
+            return None
+        return _solution(out, collides, kept), out[10], out[11]
+
+
+#: No joint target (:func:`levenberg_loop`'s ``target``).
+_NO_TARGET = (0.0, 0.0)
+
+
+def _run(
+    assembly: Any,
+    fixed: tuple[object, ...],
+    collides: bool,
+    settings: tuple[int, float, float, float],
+    target: tuple[float, float],
+    x: np.ndarray,
+    first: int,
+    frames: KnotFrames | None,
+    arrays: tuple[np.ndarray, ...],
+    obstacles: tuple[np.ndarray, np.ndarray],
+) -> tuple[Any, ...]:
+    """:func:`levenberg_loop` with the frames of ``frames``' free knots ``first .. first + T - 1``.
+
+    They are used where they span T knots and there is a collision term, their distances where
+    they were computed for the same obstacles (as :meth:`~.assembly.CompiledSolve.evaluate`
+    uses a warm start's frames).
+    """
+    known: tuple[np.ndarray, ...] = assembly.no_frames
+    use_known = reuse = False
+    T = x.shape[0]
+    if frames is not None and collides:
+        poses, dist = frames.poses, frames.dist
+        stop = first + T
+        position = poses.position[..., first:stop]
+        if position.shape[2] == T:
+            use_known = True
+            a, r = frames.obstacles, frames.radii
+            b, s = obstacles
+            same = a.shape == b.shape and r.shape == s.shape and equal(a, b) and equal(r, s)
+            reuse = dist is not None and same
+            rotation = poses.rotation[..., first:stop]
+            if dist is None:  # computed again (reuse is False)
+                known = (rotation, position, known[2], known[3])
+            else:
+                known = (rotation, position, dist.distance[..., first:stop],
+                         dist.offset[..., first:stop])  # fmt: skip
+    band, rhs = assembly.buffers(2 * x.shape[1] + 1, x.size)
+    problem = (*arrays, *obstacles, collides)
+    return levenberg_loop(
+        x, fixed, problem, assembly.compiled_robot, known, use_known, reuse, settings, band, rhs,
+        target,
+    )  # fmt: skip
+
+
+def _solution(
+    out: tuple[Any, ...], collides: bool, obstacles: tuple[np.ndarray, np.ndarray]
+) -> TrajectorySolution:
+    """The :class:`TrajectorySolution` of :func:`levenberg_loop`'s answer ``out``."""
+    q, cost, iterations, converged, axes, pos, distance, offset = out[2:10]
     frames = None
-    if solve.collides:
-        poses = BatchPoses(axes, pos, axes[:, 2])
-        frames = KnotFrames(
-            poses, CapsuleDistances(distance, offset), problem.obstacles, problem.obstacle_radii
-        )
+    if collides:
+        poses = tuple.__new__(BatchPoses, (axes, pos, axes[:, 2]))
+        dist = tuple.__new__(CapsuleDistances, (distance, offset))
+        frames = tuple.__new__(KnotFrames, (poses, dist, *obstacles))
     return tuple.__new__(TrajectorySolution, (q, cost, iterations, converged, frames))

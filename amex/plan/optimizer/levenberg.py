@@ -8,41 +8,24 @@ docs/planner.md.
 
 from __future__ import annotations
 
-import ctypes
 import math
-from functools import cache
 
 import numpy as np
 
 from amex.core.errors import ConfigError, SolverError
 from amex.plan.optimizer import compiled_loop
 from amex.plan.optimizer.assembly import CompiledAssembly, CompiledSolve, assembly_for
+from amex.plan.optimizer.compiled_loop import retain_freed_memory
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import KnotFrames, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
-__all__ = ["solve_trajectory"]
+__all__ = ["INITIAL_DAMPING", "solve_trajectory"]
 
 _F64 = np.dtype(np.float64)
-_INITIAL_DAMPING = 1.0  # Levenberg lambda of the first iteration (see solve_trajectory)
-_M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
-_TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
-
-
-@cache
-def _retain_freed_memory() -> bool:
-    """Keep glibc from returning freed heap memory to the OS (``mallopt(M_TRIM_THRESHOLD)``).
-
-    An evaluation at 400 knots allocates and frees ~1 MB; with glibc's default trim threshold
-    each one page-faults the heap top in again (docs/planner.md). A process-wide setting with no
-    effect on results; a no-op (False) where mallopt is missing.
-    """
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (AttributeError, OSError, TypeError):
-        return False
-    return bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
+#: Levenberg lambda of the first iteration (see :func:`solve_trajectory`).
+INITIAL_DAMPING = 1.0
 
 
 def solve_trajectory(
@@ -98,7 +81,7 @@ def solve_trajectory(
             (max_iterations, tolerance, damping),
             "max_iterations >= 0, tolerance >= 0, damping > 0",
         )
-    _retain_freed_memory()
+    retain_freed_memory()
     solve = assembly_for(robot, problem, assembly).begin(problem)
     steps = problem.steps
     if type(q_init) is np.ndarray and q_init.dtype is _F64 and q_init.shape[0] == steps + 1:
@@ -112,13 +95,13 @@ def solve_trajectory(
         init_frames = None
     if compiled and compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
         return compiled_loop.solve_compiled(
-            solve, x, init_frames, max_iterations, tolerance, damping, _INITIAL_DAMPING
+            solve, x, init_frames, max_iterations, tolerance, damping, INITIAL_DAMPING
         )
     point = solve.evaluate(x, init_frames)
     if not math.isfinite(point.cost):
         problem.check()  # a non-finite input named, where that is the cause
         raise SolverError(f"non-finite trajectory cost {point.cost} at the initial guess", problem)
-    lam = max(damping, _INITIAL_DAMPING)
+    lam = max(damping, INITIAL_DAMPING)
     converged, iterations = False, 0
     woken = solve.woken()  # pairs a rejected step pushed in
     current = None  # the normal equations at point, made when needed
