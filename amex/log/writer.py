@@ -99,6 +99,17 @@ COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % mor
 BATCH = 50  # outer steps kept before they are written (0.5 s of simulation at 100 Hz)
 
 
+def write_options() -> MCAPWriteOptions:
+    """The SDK's MCAP options of every log: zstd chunks of :data:`CHUNK_SIZE`, no threads."""
+    return MCAPWriteOptions(
+        compression=COMPRESSION,
+        chunk_size=CHUNK_SIZE,
+        compression_threads=0,
+        compression_level=COMPRESSION_LEVEL,
+        profile="",
+    )
+
+
 class EpisodeLogger:
     """Recorder (see :class:`amex.sim.episode.Recorder`) writing one episode as an MCAP file.
 
@@ -148,16 +159,9 @@ class EpisodeLogger:
         self._failures = WriteFailures()
         self._failures.attach()
         self._context = foxglove.Context()
-        options = MCAPWriteOptions(
-            compression=COMPRESSION,
-            chunk_size=CHUNK_SIZE,
-            compression_threads=0,
-            compression_level=COMPRESSION_LEVEL,
-            profile="",
-        )
         try:
             self._writer = foxglove.open_mcap(
-                self.part_path, context=self._context, writer_options=options
+                self.part_path, context=self._context, writer_options=write_options()
             )
         except Exception as e:  # foxglove raises its own error types for I/O failures
             self._failures.detach()

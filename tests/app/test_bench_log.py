@@ -2,8 +2,13 @@
 
 import numpy as np
 import pytest
+from mcap.reader import make_reader
 
-from amex.app.bench_log import log_overhead, main
+from amex.app.bench_log import log_overhead, main, sdk_floor
+from amex.experiment.config import RunConfig
+from amex.experiment.runner import prepare, run_one
+from amex.log import read_log
+from amex.methods import METHODS
 
 
 def test_log_overhead_times_each_environment_plain_and_logged():
@@ -11,6 +16,8 @@ def test_log_overhead_times_each_environment_plain_and_logged():
     assert all(len(part) == 2 for part in result)
     assert np.all(result.plain_cpu > 0) and np.all(result.logged_cpu > 0)
     assert np.all(result.plain_wall > 0) and np.all(result.logged_wall > 0)
+    assert np.all(result.floor_cpu > 0)
+    np.testing.assert_allclose(result.floor(), result.floor_cpu / result.plain_cpu)
     np.testing.assert_allclose(result.overhead("wall"), result.logged_wall / result.plain_wall - 1)
     with pytest.raises(ValueError, match="valid: thread, wall"):
         result.overhead("process")
@@ -20,3 +27,21 @@ def test_main_prints_one_summary_line_per_task_and_method(capsys):
     main(["max_time=0.1", "--tasks", "1", "--methods", "dmp", "--episodes", "1", "--quiet"])
     out = capsys.readouterr().out.strip().splitlines()
     assert len(out) == 1 and out[0].startswith("Task 1, dmp (1 env): log=full overhead")
+
+
+def test_the_floor_writes_the_same_log_again_with_the_sdk(tmp_path):
+    config = RunConfig(task=1, max_time=0.3)
+    config.method = METHODS["amex"].config_class()
+    path = tmp_path / "episode.mcap"
+    run_one(config, prepare(config), 0, path)
+    assert sdk_floor(path, tmp_path / "again.mcap") > 0
+    first, again = read_log(path), read_log(tmp_path / "again.mcap")
+    assert again.message_count == first.message_count > 100
+    assert again.outcome == first.outcome and not again.damage
+    assert messages(tmp_path / "again.mcap") == messages(path)
+
+
+def messages(path):
+    with open(path, "rb") as f:
+        reader = make_reader(f)
+        return [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages()]
