@@ -248,7 +248,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
 
     method.step = timed  # type: ignore[method-assign]
     try:
-        compiled_loop.ReplanLoop.solve = replanned  # type: ignore[method-assign]
+        compiled_loop.ReplanLoop.solve = replanned  # type: ignore[method-assign,assignment]
         for name in solvers:
             setattr(optimizer, name, captured(name))
         for env in envs:

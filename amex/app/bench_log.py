@@ -131,7 +131,7 @@ def log_overhead(
 
     config = load_config([f"task={task}", f"method={method}", *overrides])
     run = setup(config, prepare(config))
-    rows: list[tuple[float, float, float, float]] = []
+    rows: list[tuple[float, float, float, float, float]] = []
     with tempfile.TemporaryDirectory(prefix="amex-bench-log-") as tmp:
         first = next(iter(envs), 0)
         run_setup(run, first)  # warm-up, not counted

@@ -440,7 +440,8 @@ class ReplanLoop:
         c = assembly.constants(costs, dt)
         self.assembly, self.costs, self.dt = assembly, costs, float(dt)
         self.fixed, self.collision = c.fixed, c.collision
-        self.settings = (int(settings[0]), *(float(value) for value in settings[1:]))
+        iterations, tolerance, damping, initial = settings
+        self.settings = (int(iterations), float(tolerance), float(damping), float(initial))
         self.target = (float(target[0]), float(target[1]))
         fused = BOUND and assembly.nv >= 2  # as CompiledSolve.loop decides
         self.usable = fused and not c.tcp_velocity and costs.collision_cost != "proxy"
