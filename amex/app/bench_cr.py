@@ -263,6 +263,46 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
     return result
 
 
+def path_times(
+    task: int, envs: range = range(1), overrides: Sequence[str] = ()
+) -> tuple[np.ndarray, np.ndarray]:
+    """CR's step on its one-call path and on ``solve_trajectory``'s, step by step [s].
+
+    Each environment runs twice, alternating: CR as it runs (its usual step one
+    :class:`~amex.plan.optimizer.compiled_loop.ReplanLoop` call) and CR with that path off (every
+    solve through ``solve_trajectory``). The two see the same observations (the same numbers),
+    so step i of one is step i of the other. Returns their thread CPU times, shape (steps,) each.
+    """
+    from amex.app.compose import load_config
+    from amex.experiment.runner import prepare, setup
+    from amex.sim.episode import run_episode
+    from amex.sim.scenario import make_scenario
+
+    config = load_config([*overrides, "method=cr", f"task={task}"])
+    run = setup(config, prepare(config))
+    context = run.context
+    times: tuple[list[float], list[float]] = ([], [])
+    for env in envs:
+        scenario = make_scenario(
+            run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
+        )
+        for one_call, store in ((True, times[0]), (False, times[1])):
+            method = run.method(context.plan, run.params, run.outer_dt, context.robot)
+            if not one_call:
+                method.replan_loop = None  # every solve through solve_trajectory
+            step = method.step
+
+            def timed(obs: Any, step: Any = step, store: list[float] = store) -> Any:
+                cpu = time.thread_time_ns()
+                out = step(obs)
+                store.append((time.thread_time_ns() - cpu) * 1e-9)
+                return out
+
+            method.step = timed  # type: ignore[method-assign]
+            run_episode(context.robot, method, scenario, run.gains, run.loop)
+    return np.array(times[0]), np.array(times[1])
+
+
 def _us(values: Sequence[float], q: float) -> float:
     return float(np.percentile(values, q)) * 1e6
 
@@ -273,8 +313,20 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tasks", type=int, nargs="*", default=[1, 2, 3, 4], choices=range(1, 5))
     parser.add_argument("--episodes", type=int, default=2, help="environments per task")
     parser.add_argument("--original", action="store_true", help="the authors' CR (Newton)")
+    parser.add_argument(
+        "--paths", action="store_true", help="CR's one-call step against solve_trajectory's"
+    )
     args = parser.parse_args(argv)
     overrides = ("experiment=original",) if args.original else ()
+    if args.paths:
+        print("task  steps | one call CPU med | solve_trajectory CPU med | paired difference med")
+        for task in args.tasks:
+            one, solver = path_times(task, range(args.episodes), overrides)
+            print(
+                f"{task:4d} {len(one):6d} | {_us(one, 50):13.1f} us | {_us(solver, 50):21.1f} us |"
+                f" {_us(solver - one, 50):18.1f} us"
+            )
+        return
     print(
         "task  steps  iters | step CPU med   p95 | floor CPU med   p95 | ratio med  p95"
         " | step wall med   p95 | floor wall med"

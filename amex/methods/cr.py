@@ -37,7 +37,7 @@ _F64 = np.dtype(np.float64)
 CR_COLLISION_COSTS = ("auto", "hinge", "proxy")
 
 if TYPE_CHECKING:  # the optimizer needs Pinocchio; imported when a CR is built
-    from amex.plan.optimizer import KnotFrames, TrajectorySolution
+    from amex.plan.optimizer import KnotFrames, ReplanLoop, TrajectorySolution
     from amex.plan.reference import ReferencePlan
     from amex.robot import RobotModel
 
@@ -171,6 +171,13 @@ class CR(Method):
 
     Raises:
         ConfigError: for invalid settings, a missing robot or a plan without its joints.
+
+    Attributes:
+        replan_loop: the one compiled call of CR's usual step, a shift by whole knots
+            (:class:`~amex.plan.optimizer.ReplanLoop`: the solve and its joint target); None
+            where it cannot run (the authors' proxy term, a single joint) or when set so:
+            every solve then goes through :func:`~amex.plan.optimizer.solve_trajectory`, with
+            the same numbers.
     """
 
     name = "cr"
@@ -209,11 +216,12 @@ class CR(Method):
         # the command's stride on a replanned horizon: q(t), q(t + dt / 2), q(t + dt)
         self._stride = dt / self.knot_dt / 2.0
         self._whole = abs(self._stride - round(self._stride)) <= 1e-9  # whole knots (whole_knots)
-        # a shift by whole knots solved as one compiled call with its target (ReplanLoop)
+        # A shift by whole knots solved as one compiled call with its target (ReplanLoop);
+        # None (where it cannot run, or set so to compare): every solve through solve_trajectory.
         settings = (self.iterations, self.tolerance, self.damping, optimizer.INITIAL_DAMPING)
         target = (0.0 if self._whole else self._stride, float(dt))
         loop = optimizer.ReplanLoop(self.assembly, self.costs, self.knot_dt, settings, target)
-        self._loop = loop if loop.usable else None
+        self.replan_loop: ReplanLoop | None = loop if loop.usable else None
         self.restart()
 
     # ----------------------------------------------------------------------------- state
@@ -267,9 +275,11 @@ class CR(Method):
         arrays = type(o) is type(r) is type(q) is type(v) is np.ndarray
         arrays = arrays and o.dtype is r.dtype is q.dtype is v.dtype is _F64 and o.shape[1:] == (3,)
         solved = None
-        if type(rows) is slice and arrays and self._loop is not None:  # CR's usual step
+        if type(rows) is slice and arrays and self.replan_loop is not None:  # CR's usual step
             x = self._knots[rows.start + 1 : rows.stop]  # the free knots (a view)
-            solved = self._loop.solve(x, self._frames, rows.start, q, v, goal[:3], goal[3:6], o, r)
+            solved = self.replan_loop.solve(
+                x, self._frames, rows.start, q, v, goal[:3], goal[3:6], o, r
+            )
         if solved is None:
             solution, self._target = self._solve(obs, steps, rows, arrays), None
         else:

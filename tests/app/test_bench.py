@@ -1,5 +1,6 @@
 """``make bench`` runs (its numbers are read by people, never asserted on)."""
 
+import numpy as np
 import pytest
 
 from amex.app.bench import main
@@ -63,3 +64,12 @@ def test_cr_floor_replays_the_compiled_loops_own_calls(monkeypatch):
     functions = {fn for calls in replayed for fn, _, _ in calls}
     assert tcp_kinematics in functions and lapack.dpbsv in functions
     assert not functions & {pin.computeJointJacobians, pin.getFrameJacobian}
+
+
+def test_cr_paths_are_timed_step_by_step_on_the_same_observations():
+    """``bench_cr --paths``: CR's one-call step and solve_trajectory's, step for step."""
+    from amex.app import bench_cr
+
+    one_call, solver = bench_cr.path_times(1, range(1), ("max_time=0.3",))
+    assert len(one_call) == len(solver) == 30  # the same steps (no time compared)
+    assert np.all(one_call > 0) and np.all(solver > 0)

@@ -354,8 +354,8 @@ def test_the_one_call_step_commands_as_the_solver_path(context, task):
     run = setup(dataclasses.replace(config, task=task, max_time=1.5), ctx)
     one_call = run.method(ctx.plan, run.params, run.outer_dt, ctx.robot)
     solver_path = run.method(ctx.plan, run.params, run.outer_dt, ctx.robot)
-    solver_path._loop = None
-    assert one_call._loop is not None
+    solver_path.replan_loop = None
+    assert one_call.replan_loop is not None
     steps, taken = one_call.step, []
 
     def step(obs):
