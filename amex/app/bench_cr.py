@@ -287,7 +287,7 @@ def path_times(
             run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
         )
         for one_call, store in ((True, times[0]), (False, times[1])):
-            method = run.method(context.plan, run.params, run.outer_dt, context.robot)
+            method: Any = run.method(context.plan, run.params, run.outer_dt, context.robot)
             if not one_call:
                 method.replan_loop = None  # every solve through solve_trajectory
             step = method.step
@@ -303,7 +303,7 @@ def path_times(
     return np.array(times[0]), np.array(times[1])
 
 
-def _us(values: Sequence[float], q: float) -> float:
+def _us(values: Sequence[float] | np.ndarray, q: float) -> float:
     return float(np.percentile(values, q)) * 1e6
 
 
