@@ -195,7 +195,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         return solve
 
     original = method.step
-    from amex.plan.optimizer import compiled_loop
+    from amex.plan.optimizer import compiled_loop, loop_calls
     from amex.plan.optimizer.assembly import BOUND
 
     costs = getattr(method, "costs", None)
@@ -221,7 +221,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         result.iterations.append(iterations)
         return out
 
-    loop_solve = compiled_loop.ReplanLoop.solve
+    loop_solve = loop_calls.ReplanLoop.solve
 
     def replanned(loop: Any, x: Any, frames: Any, first: int, *arrays: Any) -> Any:
         """CR's usual step (one compiled call): recorded as the same solve_trajectory call."""
@@ -248,7 +248,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
 
     method.step = timed  # type: ignore[method-assign]
     try:
-        compiled_loop.ReplanLoop.solve = replanned  # type: ignore[method-assign,assignment]
+        loop_calls.ReplanLoop.solve = replanned  # type: ignore[method-assign,assignment]
         for name in solvers:
             setattr(optimizer, name, captured(name))
         for env in envs:
@@ -257,7 +257,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
             )
             run_episode(context.robot, method, scenario, run.gains, run.loop)
     finally:
-        compiled_loop.ReplanLoop.solve = loop_solve  # type: ignore[method-assign]
+        loop_calls.ReplanLoop.solve = loop_solve  # type: ignore[method-assign]
         for name, solver in solvers.items():
             setattr(optimizer, name, solver)
     return result
@@ -269,7 +269,7 @@ def path_times(
     """CR's step on its one-call path and on ``solve_trajectory``'s, step by step [s].
 
     Each environment runs twice, alternating: CR as it runs (its usual step one
-    :class:`~amex.plan.optimizer.compiled_loop.ReplanLoop` call) and CR with that path off (every
+    :class:`~amex.plan.optimizer.loop_calls.ReplanLoop` call) and CR with that path off (every
     solve through ``solve_trajectory``). The two see the same observations (the same numbers),
     so step i of one is step i of the other. Returns their thread CPU times, shape (steps,) each.
     """

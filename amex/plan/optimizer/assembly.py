@@ -39,16 +39,15 @@ from amex.plan.kinematics_kernels import (
 )
 from amex.plan.optimizer.assembly_kernels import (
     damped_system,
-    equal,
     start_residuals,
     take_step,
     wake_pairs,
 )
 from amex.plan.optimizer.band import solve_band
 from amex.plan.optimizer.blas import BOUND
-from amex.plan.optimizer.compiled_loop import robot_arrays
 from amex.plan.optimizer.final_terms import final_terms, final_weights
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
+from amex.plan.optimizer.loop_calls import robot_arrays
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import GUARD, KnotFrames, acceleration_scale
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
@@ -292,7 +291,7 @@ class CompiledSolve:
         kin = self.assembly.kinematics
         poses = known.poses if known is not None else kin.forward(x)
         dist = None
-        if known is not None and self._same_obstacles(known):
+        if known is not None and known.computed_for(problem.obstacles, problem.obstacle_radii):
             dist = known.dist
         if dist is None and T >= 2:  # capsule_distances' kernel call, its arrays at hand
             C, k = self.shape[0], self.shape[1]
@@ -316,12 +315,6 @@ class CompiledSolve:
         if knot.size:
             cost += float(r_near.dot(r_near))
         return _new(Iterate, (x, r_acc, r_fin, J_fin, cost, poses, dist, cap, obs, knot, r_near))
-
-    def _same_obstacles(self, known: KnotFrames) -> bool:
-        """Whether ``known`` was computed for this problem's obstacles (as ``distances`` tests)."""
-        problem = self.problem
-        a, b, r, s = known.obstacles, problem.obstacles, known.radii, problem.obstacle_radii
-        return a.shape == b.shape and r.shape == s.shape and equal(a, b) and equal(r, s)
 
     def linearize(self, point: Iterate) -> Linearized:
         """The pieces of ``2 J^T J`` and ``2 J^T r`` at ``point`` (as ``linearize``'s)."""

@@ -17,24 +17,21 @@ from Pinocchio's in the last bits. The solve's numbers then agree with the Pinoc
 times (docs/results/speed.md gives the measured differences). ``tests/plan/test_compiled_loop.py``
 compares the two paths.
 
-Over the 400-line guide for a module (~420) and the 80-line guide for a function on purpose:
-:func:`levenberg_loop` is :func:`~.levenberg.solve_trajectory` written out, with
-:meth:`~.assembly.CompiledSolve.evaluate` as :func:`_evaluate`, so that each reads beside its
-Python original.
+Its callers' side (the arguments put together, the answer turned into a solution or an error)
+is :mod:`.loop_calls`.
+
+Over the 80-line guide for a function on purpose: :func:`levenberg_loop` is
+:func:`~.levenberg.solve_trajectory` written out, with :meth:`~.assembly.CompiledSolve.evaluate`
+as :func:`_evaluate`, so that each reads beside its Python original.
 """
 
 from __future__ import annotations
 
-import ctypes
 import math
-from functools import cache
-from typing import TYPE_CHECKING, Any
 
 import numba
 import numpy as np
 
-from amex.core.errors import SolverError
-from amex.plan.batch_kinematics import BatchKinematics, BatchPoses, CapsuleDistances
 from amex.plan.kinematics_kernels import (
     capsule_sphere_distances,
     forward_frames,
@@ -42,46 +39,18 @@ from amex.plan.kinematics_kernels import (
     pair_gradients,
 )
 from amex.plan.knots import midpoint_target
-from amex.plan.optimizer.assembly_kernels import equal, start_residuals, take_step, wake_pairs
-from amex.plan.optimizer.blas import BOUND, ddot
+from amex.plan.optimizer.assembly_kernels import start_residuals, take_step, wake_pairs
+from amex.plan.optimizer.blas import ddot
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
-from amex.plan.optimizer.residuals import GUARD, KnotFrames
-from amex.plan.problem import TrajectorySolution
+from amex.plan.optimizer.residuals import GUARD
 
-if TYPE_CHECKING:
-    from amex.robot import RobotModel
-
-__all__ = [
-    "ReplanLoop",
-    "levenberg_loop",
-    "retain_freed_memory",
-    "robot_arrays",
-    "solve_compiled",
-    "tcp_kinematics",
-]
+__all__ = ["ENABLED", "levenberg_loop", "tcp_kinematics"]
 
 #: Whether :func:`~.levenberg.solve_trajectory` runs :func:`levenberg_loop` where it can (the
 #: tests and ``python -m amex.app.bench_cr`` switch it off to run the Python loop beside it).
 ENABLED = True
-#: :func:`levenberg_loop`'s outcomes (its first return value).
-_SOLVED, _BAD_START, _BAD_TRIAL, _NOT_DEFINITE, _ILLEGAL = 0, 1, 2, 3, 4
-_M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
-_TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
-
-
-@cache
-def retain_freed_memory() -> bool:
-    """Keep glibc from returning freed heap memory to the OS (``mallopt(M_TRIM_THRESHOLD)``).
-
-    An evaluation at 400 knots allocates and frees ~1 MB; with glibc's default trim threshold
-    each one page-faults the heap top in again (docs/planner.md). A process-wide setting with no
-    effect on results, made once; a no-op (False) where mallopt is missing.
-    """
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (AttributeError, OSError, TypeError):
-        return False
-    return bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
+#: :func:`levenberg_loop`'s outcomes (its first return value): solved, or the error.
+SOLVED, BAD_START, BAD_TRIAL, NOT_DEFINITE, ILLEGAL = 0, 1, 2, 3, 4
 
 
 @numba.njit(cache=True)
@@ -244,7 +213,7 @@ def levenberg_loop(
         x, r_acc, v_last, r_fin, J_fin, frames, fixed, problem, robot, known, use_known, reuse_dist
     )
     cost = point[0]
-    outcome, value = (_SOLVED, 0.0) if math.isfinite(cost) else (_BAD_START, cost)
+    outcome, value = (SOLVED, 0.0) if math.isfinite(cost) else (BAD_START, cost)
     lam = max(damping, initial_damping)
     converged, iterations = False, 0
     C, k = robot[6].shape[0], problem[5].shape[0]  # capsules, obstacles
@@ -254,7 +223,7 @@ def levenberg_loop(
     JtJ, Jtr = np.empty((0, 0)), np.empty(0)
     J_col = np.empty((0, n))
     first = n * T - 2 * n
-    while outcome == _SOLVED and iterations < max_iterations and not converged:
+    while outcome == SOLVED and iterations < max_iterations and not converged:
         iterations += 1
         cap, obs, knot, r_near = point[5], point[6], point[7], point[8]
         if not linearized:  # CompiledSolve.linearize
@@ -287,7 +256,7 @@ def levenberg_loop(
             lam,
         )
         if info != 0:
-            outcome, value = (_NOT_DEFINITE if info > 0 else _ILLEGAL), float(info)
+            outcome, value = (NOT_DEFINITE if info > 0 else ILLEGAL), float(info)
             break
         s = 0 if current_set != 0 else 1
         small = take_step(
@@ -309,7 +278,7 @@ def levenberg_loop(
         )
         new_cost = trial[0]
         if not math.isfinite(new_cost):
-            outcome, value = _BAD_TRIAL, new_cost
+            outcome, value = BAD_TRIAL, new_cost
             break
         if new_cost <= cost:
             converged = small or cost - new_cost <= tolerance * cost
@@ -332,211 +301,3 @@ def levenberg_loop(
         midpoint_target(q, stride, target_dt, q_mid, qd)
     axes, pos, distance, offset = point[1], point[2], point[3], point[4]
     return outcome, value, q, cost, iterations, converged, axes, pos, distance, offset, q_mid, qd
-
-
-def robot_arrays(
-    robot: RobotModel, kin: BatchKinematics
-) -> tuple[tuple[object, ...], tuple[np.ndarray, ...]]:
-    """The arm's arrays :func:`levenberg_loop` reads, and its frames over zero knots.
-
-    The TCP's point and rotation in its joint's turned frame (as
-    :meth:`~amex.plan.batch_kinematics.BatchKinematics.frame_positions` turns them) and the
-    joints that move it; the capsules' tables; frames and distances over zero knots.
-    """
-    frame = robot.model.frames[robot.tcp_frame_id]
-    joint = int(frame.parentJoint)
-    turn = kin.turn[joint]
-    support = np.zeros(robot.model.nv, dtype=bool)
-    j = joint
-    while j > 0:
-        support[j - 1] = True
-        j = kin.parents[j]
-    arrays = (
-        kin.local,
-        kin.parents_array,
-        joint,
-        np.ascontiguousarray(turn.T @ frame.placement.translation),
-        np.ascontiguousarray(turn.T @ frame.placement.rotation),
-        support,
-        kin.cap_joint,
-        kin.cap_ends,
-        kin.cap_inv_len2,
-        kin.cap_radius,
-        kin.cap_support,
-    )
-    C, nj = len(kin.cap_joint), kin.njoints
-    empty = (
-        np.empty((nj, 3, 3, 0)),
-        np.empty((nj, 3, 0)),
-        np.empty((C, 0, 0)),
-        np.empty((C, 0, 3, 0)),
-    )
-    return arrays, empty
-
-
-def solve_compiled(
-    solve: Any,
-    x: np.ndarray,
-    init_frames: KnotFrames | None,
-    max_iterations: int,
-    tolerance: float,
-    damping: float,
-    initial_damping: float,
-) -> TrajectorySolution:
-    """:func:`levenberg_loop` from the free knots ``x`` (T, n): the Python loop's solution.
-
-    ``solve``: the :class:`~.assembly.CompiledSolve` of the problem (not imported here: the
-    assembly imports this module).
-
-    Raises:
-        SolverError: as :func:`~.levenberg.solve_trajectory` raises it.
-    """
-    problem, assembly = solve.problem, solve.assembly
-    settings = (int(max_iterations), float(tolerance), float(damping), float(initial_damping))
-    arrays = (problem.q_start, problem.v_start, problem.goal_pos, problem.goal_axis)
-    obstacles = (problem.obstacles, problem.obstacle_radii)
-    out = _run(assembly, solve.constants.fixed, solve.collides, settings, _NO_TARGET, x, 0,
-               init_frames, arrays, obstacles)  # fmt: skip
-    outcome, value = out[0], out[1]
-    if outcome == _BAD_START:
-        problem.check()  # a non-finite input named, where that is the cause
-        raise SolverError(f"non-finite trajectory cost {value} at the initial guess", problem)
-    if outcome == _BAD_TRIAL:
-        raise SolverError(f"non-finite trajectory cost {value}", problem)
-    if outcome in (_NOT_DEFINITE, _ILLEGAL):
-        solve.raise_cholesky(int(value))
-    return _solution(out, solve.collides, obstacles)
-
-
-class ReplanLoop:
-    """:func:`levenberg_loop` for one solve after another of a robot, costs and knot spacing.
-
-    CR's every outer step. What stays from solve to solve (the costs' constants, the robot's
-    arrays, the solver's settings, the target's stride) is put together once, and a solve
-    passes only what changes: the same call :func:`~.levenberg.solve_trajectory` makes with
-    ``compiled=True``, on the same arguments, so the same numbers, without the ~10 us of Python
-    it spends on the problem's objects. :meth:`solve` answers None where that path would not run
-    the loop, or where the loop did not solve: the caller then solves through
-    ``solve_trajectory``, which raises the error with its problem.
-
-    Args:
-        assembly: the robot's :class:`~.assembly.CompiledAssembly` (its buffers and arrays).
-        costs: the problems' costs (:class:`~amex.plan.problem.TrajectoryCosts`).
-        dt: their knot spacing [s].
-        settings: ``(max_iterations, tolerance, damping, initial_damping)``.
-        target: ``(stride, dt)`` of the joint target computed from each solution
-            (:func:`~amex.plan.knots.midpoint_target`; stride 0: none).
-    """
-
-    def __init__(
-        self,
-        assembly: Any,
-        costs: Any,
-        dt: float,
-        settings: tuple[int, float, float, float],
-        target: tuple[float, float] = (0.0, 0.0),
-    ) -> None:
-        retain_freed_memory()
-        c = assembly.constants(costs, dt)
-        self.assembly, self.costs, self.dt = assembly, costs, float(dt)
-        self.fixed, self.collision = c.fixed, c.collision
-        iterations, tolerance, damping, initial = settings
-        self.settings = (int(iterations), float(tolerance), float(damping), float(initial))
-        self.target = (float(target[0]), float(target[1]))
-        fused = BOUND and assembly.nv >= 2  # as CompiledSolve.loop decides
-        self.usable = fused and not c.tcp_velocity and costs.collision_cost != "proxy"
-
-    def solve(
-        self,
-        x: np.ndarray,
-        frames: KnotFrames | None,
-        first: int,
-        q_start: np.ndarray,
-        v_start: np.ndarray,
-        goal_pos: np.ndarray,
-        goal_axis: np.ndarray,
-        obstacles: np.ndarray,
-        radii: np.ndarray,
-    ) -> tuple[TrajectorySolution, np.ndarray, np.ndarray] | None:
-        """The solution from the free knots ``x`` (T, n), and its joint target ``(q_mid, qd)``.
-
-        ``frames``: the last solution's, whose free knots ``first .. first + T - 1`` are those of
-        ``x`` (CR's shift by whole knots), or None. The arrays are float64 of the problem's
-        shapes and finite (:meth:`~amex.plan.problem.TrajectoryProblem.prechecked`'s terms); the
-        obstacles are copied where the solution's frames keep them. None: solve through
-        :func:`~.levenberg.solve_trajectory` instead (class notes).
-        """
-        if not (ENABLED and self.usable and x.shape[0] >= 2):
-            return None
-        collides = self.collision and radii.shape[0] > 0
-        if collides:
-            obstacles, radii = obstacles.copy(), radii.copy()
-        kept = (obstacles, radii)
-        arrays = (q_start, v_start, goal_pos, goal_axis)
-        out = _run(self.assembly, self.fixed, collides, self.settings, self.target, x, first,
-                   frames, arrays, kept)  # fmt: skip
-        if out[0] != _SOLVED:
-            return None
-        return _solution(out, collides, kept), out[10], out[11]
-
-
-#: No joint target (:func:`levenberg_loop`'s ``target``).
-_NO_TARGET = (0.0, 0.0)
-
-
-def _run(
-    assembly: Any,
-    fixed: tuple[object, ...],
-    collides: bool,
-    settings: tuple[int, float, float, float],
-    target: tuple[float, float],
-    x: np.ndarray,
-    first: int,
-    frames: KnotFrames | None,
-    arrays: tuple[np.ndarray, ...],
-    obstacles: tuple[np.ndarray, np.ndarray],
-) -> tuple[Any, ...]:
-    """:func:`levenberg_loop` with the frames of ``frames``' free knots ``first .. first + T - 1``.
-
-    They are used where they span T knots and there is a collision term, their distances where
-    they were computed for the same obstacles (as :meth:`~.assembly.CompiledSolve.evaluate`
-    uses a warm start's frames).
-    """
-    known: tuple[np.ndarray, ...] = assembly.no_frames
-    use_known = reuse = False
-    T = x.shape[0]
-    if frames is not None and collides:
-        poses, dist = frames.poses, frames.dist
-        stop = first + T
-        position = poses.position[..., first:stop]
-        if position.shape[2] == T:
-            use_known = True
-            a, r = frames.obstacles, frames.radii
-            b, s = obstacles
-            same = a.shape == b.shape and r.shape == s.shape and equal(a, b) and equal(r, s)
-            reuse = dist is not None and same
-            rotation = poses.rotation[..., first:stop]
-            if dist is None:  # computed again (reuse is False)
-                known = (rotation, position, known[2], known[3])
-            else:
-                known = (rotation, position, dist.distance[..., first:stop],
-                         dist.offset[..., first:stop])  # fmt: skip
-    band, rhs = assembly.buffers(2 * x.shape[1] + 1, x.size)
-    problem = (*arrays, *obstacles, collides)
-    return levenberg_loop(
-        x, fixed, problem, assembly.compiled_robot, known, use_known, reuse, settings, band, rhs,
-        target,
-    )  # fmt: skip
-
-
-def _solution(
-    out: tuple[Any, ...], collides: bool, obstacles: tuple[np.ndarray, np.ndarray]
-) -> TrajectorySolution:
-    """The :class:`TrajectorySolution` of :func:`levenberg_loop`'s answer ``out``."""
-    q, cost, iterations, converged, axes, pos, distance, offset = out[2:10]
-    frames = None
-    if collides:
-        poses = tuple.__new__(BatchPoses, (axes, pos, axes[:, 2]))
-        dist = tuple.__new__(CapsuleDistances, (distance, offset))
-        frames = tuple.__new__(KnotFrames, (poses, dist, *obstacles))
-    return tuple.__new__(TrajectorySolution, (q, cost, iterations, converged, frames))

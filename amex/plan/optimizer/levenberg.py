@@ -15,7 +15,7 @@ import numpy as np
 from amex.core.errors import ConfigError, SolverError
 from amex.plan.optimizer import compiled_loop
 from amex.plan.optimizer.assembly import CompiledAssembly, CompiledSolve, assembly_for
-from amex.plan.optimizer.compiled_loop import retain_freed_memory
+from amex.plan.optimizer.loop_calls import retain_freed_memory, solve_compiled
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import KnotFrames, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
@@ -94,7 +94,7 @@ def solve_trajectory(
     if init_frames is not None and init_frames.poses.position.shape[2] != steps:
         init_frames = None
     if compiled and compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
-        return compiled_loop.solve_compiled(
+        return solve_compiled(
             solve, x, init_frames, max_iterations, tolerance, damping, INITIAL_DAMPING
         )
     point = solve.evaluate(x, init_frames)

@@ -18,6 +18,7 @@ import pinocchio as pin
 from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchPoses, CapsuleDistances, batch_kinematics
 from amex.plan.kinematics_kernels import near_pairs
+from amex.plan.optimizer.assembly_kernels import equal
 from amex.plan.optimizer.final_terms import final_terms
 from amex.plan.optimizer.proxy import ProxyTerms, proxy_terms
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem
@@ -73,10 +74,18 @@ class KnotFrames(NamedTuple):
 
     def distances(self, problem: TrajectoryProblem) -> CapsuleDistances | None:
         """The distances, if computed for the obstacles of ``problem``."""
-        same = np.array_equal(self.obstacles, problem.obstacles) and np.array_equal(
-            self.radii, problem.obstacle_radii
-        )
-        return self.dist if same else None
+        return self.dist if self.computed_for(problem.obstacles, problem.obstacle_radii) else None
+
+    def computed_for(self, obstacles: np.ndarray, radii: np.ndarray) -> bool:
+        """Whether :attr:`dist` was computed for ``obstacles`` and ``radii``.
+
+        ``np.array_equal``'s answer (entry by entry; -0.0 equals 0.0), from one compiled call
+        per array (CR's every step asks).
+        """
+        a, r = self.obstacles, self.radii
+        if a.shape != obstacles.shape or r.shape != radii.shape:
+            return False
+        return bool(equal(a, obstacles) and equal(r, radii))
 
 
 class Point(NamedTuple):
