@@ -171,13 +171,8 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         Per outer step, the step's and the floor's times (module notes).
     """
     import amex.plan.optimizer as optimizer
-    from amex.app.compose import load_config
-    from amex.experiment.runner import prepare, setup
-    from amex.sim.episode import run_episode
-    from amex.sim.scenario import make_scenario
 
-    config = load_config([*overrides, "method=cr", f"task={task}"])
-    run = setup(config, prepare(config))
+    run = _cr_setup(task, overrides)
     context = run.context
     method = run.method(context.plan, run.params, run.outer_dt, context.robot)
     result = CRFloor([], [], [], [], [])
@@ -252,10 +247,7 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         for name in solvers:
             setattr(optimizer, name, captured(name))
         for env in envs:
-            scenario = make_scenario(
-                run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
-            )
-            run_episode(context.robot, method, scenario, run.gains, run.loop)
+            _episode(run, task, env, method)
     finally:
         loop_calls.ReplanLoop.solve = loop_solve  # type: ignore[method-assign]
         for name, solver in solvers.items():
@@ -273,19 +265,10 @@ def path_times(
     solve through ``solve_trajectory``). The two see the same observations (the same numbers),
     so step i of one is step i of the other. Returns their thread CPU times, shape (steps,) each.
     """
-    from amex.app.compose import load_config
-    from amex.experiment.runner import prepare, setup
-    from amex.sim.episode import run_episode
-    from amex.sim.scenario import make_scenario
-
-    config = load_config([*overrides, "method=cr", f"task={task}"])
-    run = setup(config, prepare(config))
+    run = _cr_setup(task, overrides)
     context = run.context
     times: tuple[list[float], list[float]] = ([], [])
     for env in envs:
-        scenario = make_scenario(
-            run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
-        )
         for one_call, store in ((True, times[0]), (False, times[1])):
             method: Any = run.method(context.plan, run.params, run.outer_dt, context.robot)
             if not one_call:
@@ -299,8 +282,29 @@ def path_times(
                 return out
 
             method.step = timed  # type: ignore[method-assign]
-            run_episode(context.robot, method, scenario, run.gains, run.loop)
+            _episode(run, task, env, method)
     return np.array(times[0]), np.array(times[1])
+
+
+def _cr_setup(task: int, overrides: Sequence[str]) -> Any:
+    """The run's set-up of CR on ``task`` (:func:`amex.experiment.runner.setup`)."""
+    from amex.app.compose import load_config
+    from amex.experiment.runner import prepare, setup
+
+    config = load_config([*overrides, "method=cr", f"task={task}"])
+    return setup(config, prepare(config))
+
+
+def _episode(run: Any, task: int, env: int, method: Any) -> None:
+    """Environment ``env`` of ``task`` (the run's seed) executed with ``method``."""
+    from amex.sim.episode import run_episode
+    from amex.sim.scenario import make_scenario
+
+    context = run.context
+    scenario = make_scenario(
+        run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
+    )
+    run_episode(context.robot, method, scenario, run.gains, run.loop)
 
 
 def _us(values: Sequence[float] | np.ndarray, q: float) -> float:

@@ -218,7 +218,7 @@ class CR(Method):
         self._whole = abs(self._stride - round(self._stride)) <= 1e-9  # whole knots (whole_knots)
         # A shift by whole knots solved as one compiled call with its target (ReplanLoop);
         # None (where it cannot run, or set so to compare): every solve through solve_trajectory.
-        settings = (self.iterations, self.tolerance, self.damping, optimizer.INITIAL_DAMPING)
+        settings = (self.iterations, self.tolerance, self.damping)
         target = (0.0 if self._whole else self._stride, float(dt))
         loop = optimizer.ReplanLoop(self.assembly, self.costs, self.knot_dt, settings, target)
         self.replan_loop: ReplanLoop | None = loop if loop.usable else None
@@ -281,7 +281,8 @@ class CR(Method):
                 x, self._frames, rows.start, q, v, goal[:3], goal[3:6], o, r
             )
         if solved is None:
-            solution, self._target = self._solve(obs, steps, rows, arrays), None
+            solution = self._solve(obs, steps, offset, stride, rows, arrays)
+            self._target = None
         else:
             solution, q_mid, qd = solved
             self._target = _new(JointTarget, (q_mid, qd)) if len(q_mid) else None
@@ -293,7 +294,13 @@ class CR(Method):
         return self._status
 
     def _solve(
-        self, obs: Observation, steps: int, rows: slice | np.ndarray | None, arrays: bool
+        self,
+        obs: Observation,
+        steps: int,
+        offset: float,
+        stride: float,
+        rows: slice | np.ndarray | None,
+        arrays: bool,
     ) -> TrajectorySolution:
         """:func:`~amex.plan.optimizer.solve_trajectory` on the step's problem (module notes)."""
         optimizer = self._optimizer
@@ -306,8 +313,6 @@ class CR(Method):
             problem = optimizer.TrajectoryProblem(*args, self.costs)
         frames = None
         if rows is None:
-            offset = (obs.t - self._knots_t0) / self._knots_dt
-            stride = self.knot_dt / self._knots_dt
             q_init = resample_knots(self._knots, offset, stride, steps + 1)
         else:  # a shift by whole knots: the last solution's frames at them are still right
             q_init = self._knots[rows]  # a view for a slice: solutions are new arrays

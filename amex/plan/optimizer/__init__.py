@@ -11,7 +11,7 @@ from amex.plan.batch_kinematics import (
     batch_kinematics,
 )
 from amex.plan.optimizer.assembly import CompiledAssembly
-from amex.plan.optimizer.levenberg import INITIAL_DAMPING, solve_trajectory
+from amex.plan.optimizer.levenberg import solve_trajectory
 from amex.plan.optimizer.linearize import NormalEquations, build_normal_equations
 from amex.plan.optimizer.loop_calls import ReplanLoop
 from amex.plan.optimizer.newton import solve_trajectory_newton
@@ -19,7 +19,6 @@ from amex.plan.optimizer.residuals import KnotFrames, trajectory_residuals
 from amex.plan.problem import TrajectoryCosts, TrajectoryProblem, TrajectorySolution
 
 __all__ = [
-    "INITIAL_DAMPING",
     "BatchKinematics",
     "BatchPoses",
     "CapsuleDistances",

@@ -186,6 +186,21 @@ class CompiledAssembly:
         """The solve of ``problem``."""
         return CompiledSolve(self, problem, self.constants(problem.costs, float(problem.dt)))
 
+    def fuses(self) -> bool:
+        """Whether the iteration's kernels call numpy's routines (:mod:`.iteration_kernels`).
+
+        The routines must be bound (:data:`.blas.BOUND`, read at each call: ``bench_cr``
+        unbinds them) and the arm must have two joints or more.
+        """
+        return BOUND and self.nv >= 2
+
+    def loop_runs(self, constants: _Constants) -> bool:
+        """Whether a solve of these constants can be one compiled call (:mod:`.compiled_loop`).
+
+        :meth:`fuses`, and the joint-velocity final terms; the solve needs T >= 2 knots too.
+        """
+        return self.fuses() and not constants.tcp_velocity
+
     def constants(self, costs: TrajectoryCosts, dt: float) -> _Constants:
         """What ``costs`` and the knot spacing ``dt`` fix, worked out once for the last pair."""
         known = self._constants
@@ -231,9 +246,9 @@ class CompiledSolve:
         self.n, k = assembly.nv, len(problem.obstacle_radii)
         self.collides = constants.collision and k > 0
         self.shape = (assembly.capsules, k, problem.steps)
-        self.fused = BOUND and self.n >= 2  # numpy's routines callable from compiled code
+        self.fused = assembly.fuses()  # numpy's routines callable from compiled code
         # the whole solve compiled (compiled_loop): the joint-velocity final terms, T >= 2
-        self.loop = self.fused and not constants.tcp_velocity and problem.steps >= 2
+        self.loop = assembly.loop_runs(constants) and problem.steps >= 2
 
     def woken(self) -> np.ndarray:
         """No pair woken yet: (C, k, T) flags (without obstacles the empty ones, shared)."""

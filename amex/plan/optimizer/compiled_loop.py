@@ -44,11 +44,13 @@ from amex.plan.optimizer.blas import ddot
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
 from amex.plan.optimizer.residuals import GUARD
 
-__all__ = ["ENABLED", "levenberg_loop", "tcp_kinematics"]
+__all__ = ["ENABLED", "INITIAL_DAMPING", "levenberg_loop", "tcp_kinematics"]
 
 #: Whether :func:`~.levenberg.solve_trajectory` runs :func:`levenberg_loop` where it can (the
 #: tests and ``python -m amex.app.bench_cr`` switch it off to run the Python loop beside it).
 ENABLED = True
+#: Levenberg lambda of the first iteration (:func:`~.levenberg.solve_trajectory`, and here).
+INITIAL_DAMPING = 1.0
 #: :func:`levenberg_loop`'s outcomes (its first return value): solved, or the error.
 SOLVED, BAD_START, BAD_TRIAL, NOT_DEFINITE, ILLEGAL = 0, 1, 2, 3, 4
 

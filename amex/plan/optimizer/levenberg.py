@@ -15,17 +15,16 @@ import numpy as np
 from amex.core.errors import ConfigError, SolverError
 from amex.plan.optimizer import compiled_loop
 from amex.plan.optimizer.assembly import CompiledAssembly, CompiledSolve, assembly_for
+from amex.plan.optimizer.compiled_loop import INITIAL_DAMPING
 from amex.plan.optimizer.loop_calls import retain_freed_memory, solve_compiled
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly
 from amex.plan.optimizer.residuals import KnotFrames, free_knots, initial_guess
 from amex.plan.problem import TrajectoryProblem, TrajectorySolution
 from amex.robot import RobotModel
 
-__all__ = ["INITIAL_DAMPING", "solve_trajectory"]
+__all__ = ["solve_trajectory"]
 
 _F64 = np.dtype(np.float64)
-#: Levenberg lambda of the first iteration (see :func:`solve_trajectory`).
-INITIAL_DAMPING = 1.0
 
 
 def solve_trajectory(
@@ -94,9 +93,7 @@ def solve_trajectory(
     if init_frames is not None and init_frames.poses.position.shape[2] != steps:
         init_frames = None
     if compiled and compiled_loop.ENABLED and type(solve) is CompiledSolve and solve.loop:
-        return solve_compiled(
-            solve, x, init_frames, max_iterations, tolerance, damping, INITIAL_DAMPING
-        )
+        return solve_compiled(solve, x, init_frames, max_iterations, tolerance, damping)
     point = solve.evaluate(x, init_frames)
     if not math.isfinite(point.cost):
         problem.check()  # a non-finite input named, where that is the cause

@@ -19,7 +19,6 @@ import numpy as np
 from amex.core.errors import SolverError
 from amex.plan.batch_kinematics import BatchKinematics, BatchPoses, CapsuleDistances
 from amex.plan.optimizer import compiled_loop as kernel
-from amex.plan.optimizer.blas import BOUND
 from amex.plan.optimizer.residuals import KnotFrames
 from amex.plan.problem import TrajectorySolution
 
@@ -94,7 +93,6 @@ def solve_compiled(
     max_iterations: int,
     tolerance: float,
     damping: float,
-    initial_damping: float,
 ) -> TrajectorySolution:
     """The compiled loop from the free knots ``x`` (T, n): the Python loop's solution.
 
@@ -105,7 +103,7 @@ def solve_compiled(
         SolverError: as :func:`~.levenberg.solve_trajectory` raises it.
     """
     problem, assembly = solve.problem, solve.assembly
-    settings = (int(max_iterations), float(tolerance), float(damping), float(initial_damping))
+    settings = (int(max_iterations), float(tolerance), float(damping), kernel.INITIAL_DAMPING)
     arrays = (problem.q_start, problem.v_start, problem.goal_pos, problem.goal_axis)
     obstacles = (problem.obstacles, problem.obstacle_radii)
     out = _run(assembly, solve.constants.fixed, solve.collides, settings, _NO_TARGET, x, 0,
@@ -136,7 +134,8 @@ class ReplanLoop:
         assembly: the robot's :class:`~.assembly.CompiledAssembly` (its buffers and arrays).
         costs: the problems' costs (:class:`~amex.plan.problem.TrajectoryCosts`).
         dt: their knot spacing [s].
-        settings: ``(max_iterations, tolerance, damping, initial_damping)``.
+        settings: ``(max_iterations, tolerance, damping)`` (lambda starts at
+            :data:`~.compiled_loop.INITIAL_DAMPING`, as in ``solve_trajectory``).
         target: ``(stride, dt)`` of the joint target computed from each solution
             (:func:`~amex.plan.knots.midpoint_target`; stride 0: none).
     """
@@ -146,18 +145,17 @@ class ReplanLoop:
         assembly: Any,
         costs: Any,
         dt: float,
-        settings: tuple[int, float, float, float],
+        settings: tuple[int, float, float],
         target: tuple[float, float] = (0.0, 0.0),
     ) -> None:
         retain_freed_memory()
         c = assembly.constants(costs, dt)
         self.assembly, self.costs, self.dt = assembly, costs, float(dt)
         self.fixed, self.collision = c.fixed, c.collision
-        iterations, tolerance, damping, initial = settings
-        self.settings = (int(iterations), float(tolerance), float(damping), float(initial))
+        iterations, tolerance, damping = settings
+        self.settings = (int(iterations), float(tolerance), float(damping), kernel.INITIAL_DAMPING)
         self.target = (float(target[0]), float(target[1]))
-        fused = BOUND and assembly.nv >= 2  # as CompiledSolve.loop decides
-        self.usable = fused and not c.tcp_velocity and costs.collision_cost != "proxy"
+        self.usable = assembly.loop_runs(c) and costs.collision_cost != "proxy"
 
     def solve(
         self,
