@@ -8,14 +8,18 @@ kinematics are Pinocchio's three calls where the solve makes them, and the compi
 (:func:`~amex.plan.optimizer.compiled_loop.tcp_kinematics`) where it runs. Everything else the
 step spends (numpy glue, allocations, Python, the band's fill, the small products) is the gap.
 
-How: each outer step (``Method.step``) is timed as the episode loop times it (thread CPU and
-wall). The trajectory solve it ran is captured (its arguments), and after the step, untimed,
-solved again on the solver's Python path with the floor's functions wrapped so that they record
-their arguments (copies): these are the step's own calls on the step's own inputs (to the last
-bits where the compiled loop's kinematics round differently). Where the step ran the compiled
-loop, each recorded Pinocchio triple becomes one ``tcp_kinematics`` call at the same joint
-angles. The recorded calls are then replayed back to back, unwrapped, and timed as one block:
-the floor. Nothing here asserts a time.
+How: each environment runs twice on fresh CRs, which see the same observations (the same
+numbers; checked step by step by their iterations). The first run times each outer step
+(``Method.step``, thread CPU and wall) and nothing else: the step as a run pays it. Timed in the
+second run instead, each step would follow the previous step's recording, which evicts the
+step's code and data from the caches (:attr:`CRFloor.recorded_cpu`: 20-25 % more,
+docs/results/speed.md). In the second run the trajectory solve each step ran is captured (its
+arguments) and, after the step, solved again on the solver's Python path with the floor's
+functions wrapped so that they record their arguments (copies): the step's own calls on the
+step's own inputs (to the last bits where the compiled loop's kinematics round differently).
+Where the step ran the compiled loop, each recorded Pinocchio triple becomes one
+``tcp_kinematics`` call at the same joint angles. The recorded calls are then replayed back to
+back, unwrapped, and timed as one block: the floor. Nothing here asserts a time.
 """
 
 from __future__ import annotations
@@ -43,11 +47,13 @@ class CRFloor(NamedTuple):
     """Per outer step: the whole step's times and its floor's, thread CPU and wall [s].
 
     Attributes:
-        step_cpu: thread CPU time of ``Method.step``.
+        step_cpu: thread CPU time of ``Method.step`` (timed alone: module notes).
         step_wall: its wall time.
         floor_cpu: thread CPU time of the step's kernel calls and solves, replayed alone.
         floor_wall: their wall time.
         iterations: solver iterations of the step (0 when it held).
+        recorded_cpu: thread CPU time of the same step in the recording run, after the
+            previous step's recording (shown beside ``step_cpu``, for what the recording costs).
     """
 
     step_cpu: list[float]
@@ -55,6 +61,7 @@ class CRFloor(NamedTuple):
     floor_cpu: list[float]
     floor_wall: list[float]
     iterations: list[int]
+    recorded_cpu: list[float]
 
 
 def _floor_functions() -> list[tuple[Any, str]]:
@@ -169,13 +176,32 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
 
     Returns:
         Per outer step, the step's and the floor's times (module notes).
+
+    Raises:
+        RuntimeError: where the two runs of an environment did not take the same steps.
+    """
+    run = _cr_setup(task, overrides)
+    result = CRFloor([], [], [], [], [], [])
+    for env in envs:
+        cpu, wall, iterations = _timed_episode(run, task, env)
+        recorded = _recorded_episode(run, task, env, result)
+        if recorded != iterations:  # the two runs must be the same steps to be paired
+            raise RuntimeError(f"CR's two runs of task {task}, environment {env} differ")
+        result.step_cpu.extend(cpu)
+        result.step_wall.extend(wall)
+    return result
+
+
+def _recorded_episode(run: Any, task: int, env: int, result: CRFloor) -> list[int]:
+    """Environment ``env`` with each step's floor recorded into ``result``; the steps' iterations.
+
+    Appends to ``result``'s floor times, iterations and ``recorded_cpu`` (module notes).
     """
     import amex.plan.optimizer as optimizer
 
-    run = _cr_setup(task, overrides)
     context = run.context
     method = run.method(context.plan, run.params, run.outer_dt, context.robot)
-    result = CRFloor([], [], [], [], [])
+    counted: list[int] = []
     solves: list[Call] = []
     names = ("solve_trajectory", "solve_trajectory_newton")
     solvers = {name: getattr(optimizer, name) for name in names}
@@ -199,10 +225,10 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
 
     def timed(obs: Any) -> Any:
         solves.clear()
-        tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
+        cpu = time.thread_time_ns()
         out = original(obs)
-        result.step_cpu.append((time.thread_time_ns() - cpu) * 1e-9)
-        result.step_wall.append((time.perf_counter_ns() - tic) * 1e-9)
+        result.recorded_cpu.append((time.thread_time_ns() - cpu) * 1e-9)
+        counted.append(method.status.iterations)
         calls: list[Call] = []
         iterations = 0
         with _recording(calls), _unfused():
@@ -246,13 +272,41 @@ def cr_floor(task: int, envs: range = range(1), overrides: Sequence[str] = ()) -
         loop_calls.ReplanLoop.solve = replanned  # type: ignore[method-assign,assignment]
         for name in solvers:
             setattr(optimizer, name, captured(name))
-        for env in envs:
-            _episode(run, task, env, method)
+        _episode(run, task, env, method)
     finally:
         loop_calls.ReplanLoop.solve = loop_solve  # type: ignore[method-assign]
         for name, solver in solvers.items():
             setattr(optimizer, name, solver)
-    return result
+    return counted
+
+
+def _timed_episode(
+    run: Any, task: int, env: int, replan_loop: bool = True
+) -> tuple[list[float], list[float], list[int]]:
+    """Environment ``env`` on a fresh CR, each step timed alone: thread CPU, wall [s], iterations.
+
+    ``replan_loop=False``: every solve through ``solve_trajectory`` (``CR.replan_loop = None``).
+    """
+    context = run.context
+    method = run.method(context.plan, run.params, run.outer_dt, context.robot)
+    if not replan_loop:
+        method.replan_loop = None
+    step = method.step
+    cpus: list[float] = []
+    walls: list[float] = []
+    iterations: list[int] = []
+
+    def timed(obs: Any) -> Any:
+        tic, cpu = time.perf_counter_ns(), time.thread_time_ns()
+        out = step(obs)
+        cpus.append((time.thread_time_ns() - cpu) * 1e-9)
+        walls.append((time.perf_counter_ns() - tic) * 1e-9)
+        iterations.append(method.status.iterations)
+        return out
+
+    method.step = timed
+    _episode(run, task, env, method)
+    return cpus, walls, iterations
 
 
 def path_times(
@@ -266,23 +320,10 @@ def path_times(
     so step i of one is step i of the other. Returns their thread CPU times, shape (steps,) each.
     """
     run = _cr_setup(task, overrides)
-    context = run.context
     times: tuple[list[float], list[float]] = ([], [])
     for env in envs:
         for one_call, store in ((True, times[0]), (False, times[1])):
-            method: Any = run.method(context.plan, run.params, run.outer_dt, context.robot)
-            if not one_call:
-                method.replan_loop = None  # every solve through solve_trajectory
-            step = method.step
-
-            def timed(obs: Any, step: Any = step, store: list[float] = store) -> Any:
-                cpu = time.thread_time_ns()
-                out = step(obs)
-                store.append((time.thread_time_ns() - cpu) * 1e-9)
-                return out
-
-            method.step = timed  # type: ignore[method-assign]
-            _episode(run, task, env, method)
+            store.extend(_timed_episode(run, task, env, replan_loop=one_call)[0])
     return np.array(times[0]), np.array(times[1])
 
 
@@ -304,7 +345,9 @@ def _episode(run: Any, task: int, env: int, method: Any) -> None:
     scenario = make_scenario(
         run.scene, task, run.seed, env, context.plan.y[0, :3], context.plan.duration
     )
-    run_episode(context.robot, method, scenario, run.gains, run.loop)
+    result = run_episode(context.robot, method, scenario, run.gains, run.loop)
+    if result.failure.startswith("method:"):  # the episode's record of an error in the step
+        raise RuntimeError(f"task {task}, environment {env}: {result.failure}")
 
 
 def _us(values: Sequence[float] | np.ndarray, q: float) -> float:
@@ -348,7 +391,8 @@ def main(argv: list[str] | None = None) -> None:
             f" {_us(sc, 50):9.1f} {_us(sc, 95):7.1f} | {_us(fc, 50):9.1f} {_us(fc, 95):7.1f} |"
             f" {_us(sc, 50) / _us(fc, 50):6.2f} {_us(sc, 95) / _us(fc, 95):5.2f} |"
             f" {_us(sw, 50):9.1f} {_us(sw, 95):7.1f} | {_us(fw, 50):9.1f}"
-            f"   (per-step ratio median {np.median(ratios):.2f})"
+            f"   (per-step ratio median {np.median(ratios):.2f};"
+            f" step after a recording {_us([r.recorded_cpu[i] for i in solving], 50):.1f})"
         )
 
 

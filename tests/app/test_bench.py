@@ -64,6 +64,30 @@ def test_cr_floor_replays_the_compiled_loops_own_calls(monkeypatch):
     functions = {fn for calls in replayed for fn, _, _ in calls}
     assert tcp_kinematics in functions and lapack.dpbsv in functions
     assert not functions & {pin.computeJointJacobians, pin.getFrameJacobian}
+    # the step is timed in its own run, the floor in a second run of the same steps
+    assert len(result.step_cpu) == len(result.recorded_cpu) == len(result.floor_cpu) == 30
+
+
+def test_cr_floor_refuses_two_runs_that_took_different_steps(monkeypatch):
+    from amex.app import bench_cr
+
+    recorded = bench_cr._recorded_episode
+    monkeypatch.setattr(bench_cr, "_recorded_episode", lambda *a: recorded(*a)[:-1])
+    with pytest.raises(RuntimeError, match="differ"):
+        bench_cr.cr_floor(1, range(1), ("max_time=0.1",))
+
+
+def test_a_bench_episode_raises_the_error_its_step_raised(monkeypatch):
+    """An episode records a method's error and ends; a bench must not time the shorter run."""
+    from amex.app import bench_cr
+    from amex.methods.cr import CR
+
+    def broken(self):
+        raise AttributeError("no such thing")
+
+    monkeypatch.setattr(CR, "target", broken)
+    with pytest.raises(RuntimeError, match="AttributeError: no such thing"):
+        bench_cr.path_times(1, range(1), ("max_time=0.1",))
 
 
 def test_cr_paths_are_timed_step_by_step_on_the_same_observations():

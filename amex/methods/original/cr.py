@@ -96,6 +96,11 @@ class CROriginal(Method):
         """The current plan's knots, shape (T + 1, n) [rad]."""
         return self._x
 
+    @property
+    def status(self) -> CRStatus:
+        """What the last step did (as :attr:`amex.methods.cr.CR.status`)."""
+        return self._status
+
     def replan(self, obs: Observation) -> CRStatus:
         """One ``MPC::replan``: shrink, shift, re-optimize from the measured prefix."""
         from amex.plan.optimizer import TrajectoryProblem, solve_trajectory_newton
