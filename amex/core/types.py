@@ -43,6 +43,16 @@ class Command(NamedTuple):
     q: np.ndarray | None = None
     qd: np.ndarray | None = None
 
+    @classmethod
+    def task(cls, y: np.ndarray, yd: np.ndarray) -> Command:
+        """``Command(y=y, yd=yd)``, made without NamedTuple's keyword path (~0.5 us per step)."""
+        return tuple.__new__(cls, (y, yd, None, None))
+
+    @classmethod
+    def joint(cls, q: np.ndarray, qd: np.ndarray) -> Command:
+        """``Command(q=q, qd=qd)``, made as :meth:`task`."""
+        return tuple.__new__(cls, (None, None, q, qd))
+
 
 def require_finite(**values: Any) -> None:
     """Raise :class:`InputError` naming the first argument that holds a NaN or an infinity.

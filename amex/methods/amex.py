@@ -368,7 +368,7 @@ class AMEX(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`: :meth:`update` with the measured ``obs.y`` and ``obs.goal``."""
         y_star, yd_star = self._advance(obs.y, obs.goal)
-        return Command(y=y_star, yd=yd_star)
+        return Command.task(y_star, yd_star)
 
     def internals(self) -> dict[str, Any]:
         """Phase s, Eq. 8 factors delta_g and delta_y, targets y_star and yd_star (last update)."""

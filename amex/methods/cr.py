@@ -358,7 +358,7 @@ class CR(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`: :meth:`plan`, then the joint target :meth:`target`."""
         self.plan(obs)
-        return _new(Command, (None, None, *self.target()))  # Command(q=q*, qd=q_dot*)
+        return Command.joint(*self.target())
 
     def internals(self) -> dict[str, Any]:
         """Mode, horizon steps, iterations, cost, converged, solve time and the planned TCP path.

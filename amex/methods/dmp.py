@@ -332,7 +332,7 @@ class DMP(Method):
         measured robot state, as in the original.
         """
         target = self._advance(obs.goal, self.dt, 1.0)
-        return Command(y=target.y_star, yd=target.yd_star)
+        return Command.task(target.y_star, target.yd_star)
 
     def internals(self) -> dict[str, Any]:
         """The phase x and its rate (1 unless phase stopping slowed it)."""

@@ -80,4 +80,4 @@ class DMPPhaseStop(DMP):
     def step(self, obs: Observation) -> Command:
         """See :meth:`DMP.step`; the phase is also slowed by Eq. 2 with the measured ``obs.y``."""
         target = self._advance(obs.goal, self.dt, self.phase_rate(obs.y))
-        return Command(y=target.y_star, yd=target.yd_star)
+        return Command.task(target.y_star, target.yd_star)

@@ -68,7 +68,7 @@ class Track(Method):
         self._index = k
         y = (1.0 - a) * self.reference[k] + a * self.reference[k + 1]
         yd = self.velocity[k] if u < last else np.zeros(self.reference.shape[1])
-        return Command(y=y, yd=yd)
+        return Command.task(y, yd)
 
     def internals(self) -> dict[str, Any]:
         """The reference sample index being tracked."""
