@@ -27,23 +27,28 @@ if TYPE_CHECKING:
 
 __all__ = ["ReplanLoop", "retain_freed_memory", "robot_arrays", "solve_compiled"]
 
-_M_TRIM_THRESHOLD = -1  # glibc mallopt parameter
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc mallopt parameters
 _TRIM_THRESHOLD = 64 << 20  # [bytes] free heap glibc keeps instead of returning it to the OS
+_MMAP_THRESHOLD = 32 << 20  # [bytes] smallest block mapped on its own (glibc's largest allowed)
 
 
 @cache
 def retain_freed_memory() -> bool:
-    """Keep glibc from returning freed heap memory to the OS (``mallopt(M_TRIM_THRESHOLD)``).
+    """Keep glibc from returning freed memory to the OS (``mallopt``, trim and mmap thresholds).
 
     An evaluation at 400 knots allocates and frees ~1 MB; with glibc's default trim threshold
-    each one page-faults the heap top in again (docs/planner.md). A process-wide setting with no
-    effect on results, made once; a no-op (False) where mallopt is missing.
+    each one page-faults the heap top in again (docs/planner.md). Setting the trim threshold
+    also fixes glibc's mmap threshold at its 128 KiB start (it no longer grows with the blocks
+    freed), so each larger array (the band at 400 knots: 330 KiB) would be mapped, faulted in
+    and unmapped at every call: the mmap threshold is raised with it. Process-wide settings
+    with no effect on results, made once; a no-op (False) where mallopt is missing.
     """
     try:
         mallopt = ctypes.CDLL(None).mallopt
     except (AttributeError, OSError, TypeError):
         return False
-    return bool(mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD))
+    trim = mallopt(_M_TRIM_THRESHOLD, _TRIM_THRESHOLD)
+    return bool(mallopt(_M_MMAP_THRESHOLD, _MMAP_THRESHOLD) and trim)
 
 
 def robot_arrays(
