@@ -28,16 +28,17 @@ from typing import Any
 from amex.core.errors import UsageError
 
 #: CPU seconds per episode (Panda, 100 Hz, seed 0): ``make paper``'s cells on the 2-core
-#: development machine, 2026-12-02, after issue #29 (``cpu_time`` of their ``summary.json`` / 150;
-#: task 0 as task 1; ``track``: DMP's less its outer steps, ~7 ms). Only the ratios matter
-#: (:func:`order_jobs`; replaying that sweep's cell times on two workers, this order ends them
-#: 4 s apart, the older figures' order 11 s); methods not listed cost like AMEX.
+#: development machine, 2026-12-04 (``cpu_time`` of their ``summary.json`` / 150, the mean of two
+#: sweeps; task 0 as task 1; ``track``: DMP's less its outer steps, ~7 ms). Only the ratios
+#: matter (:func:`order_jobs`; replaying those sweeps' cell times on two workers, this order ends
+#: them 2.4 s apart, the figures of 2026-12-02 8.1 s, as CR's step became cheaper); methods not
+#: listed cost like AMEX.
 EPISODE_COST: dict[str, tuple[float, ...]] = {  # task 0, 1, 2, 3, 4
-    "amex": (0.097, 0.097, 0.105, 0.18, 0.207),
-    "dmp": (0.074, 0.074, 0.095, 0.131, 0.143),
-    "dmp_ps": (0.074, 0.074, 0.095, 0.131, 0.143),
-    "cr": (0.18, 0.18, 0.189, 0.496, 0.58),
-    "track": (0.067, 0.067, 0.088, 0.124, 0.136),
+    "amex": (0.093, 0.093, 0.080, 0.150, 0.161),
+    "dmp": (0.070, 0.070, 0.081, 0.111, 0.122),
+    "dmp_ps": (0.070, 0.070, 0.081, 0.111, 0.122),
+    "cr": (0.121, 0.121, 0.129, 0.365, 0.429),
+    "track": (0.063, 0.063, 0.074, 0.104, 0.115),
 }
 _SHARD_KEYS = ("shard", "shards")
 
