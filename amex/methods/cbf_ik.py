@@ -68,7 +68,7 @@ def goal_velocity(p: np.ndarray, z: np.ndarray, goal: np.ndarray, gain: float, m
 
 def joint_command(q: np.ndarray, u: np.ndarray, dt: float) -> Command:
     """Joint velocity ``u`` held over ``dt`` as CR's joint targets: ``q + u dt / 2``, ``u``."""
-    return Command(q=q + (0.5 * dt) * u, qd=u.copy())
+    return Command.joint(q + (0.5 * dt) * u, u.copy())
 
 
 class CBFIK(Method):

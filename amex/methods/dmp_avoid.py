@@ -188,7 +188,7 @@ class DMPAvoid(DMP):
         head[0, :3] += self.gain_step[0] * C
         head[1, :3] += self.gain_step[1] * C
         self._coupling = C
-        return Command(y=head[0].copy(), yd=head[1].copy())
+        return Command.task(head[0].copy(), head[1].copy())
 
     def internals(self) -> dict[str, Any]:
         """The DMP's phase and the coupling acceleration of the last step."""

@@ -499,7 +499,7 @@ class MPPI(Method):
         """See :meth:`Method.step`: :meth:`sample`, then the joint target :meth:`target`."""
         self.sample(obs)
         q, qd = self.target(obs.q, obs.qd)
-        return Command(q=q, qd=qd)
+        return Command.joint(q, qd)
 
     def internals(self) -> dict[str, Any]:
         """The last step's :class:`MPPIStatus`, the early-stop count and the nominal TCP path.

@@ -317,7 +317,7 @@ class RMPflow(Method):
         dt = self.dt
         q_star = obs.q + (0.5 * dt) * obs.qd + (0.125 * dt * dt) * out.qdd
         qd_star = obs.qd + (0.5 * dt) * out.qdd
-        return Command(q=q_star, qd=qd_star)
+        return Command.joint(q_star, qd_star)
 
     def internals(self) -> dict[str, Any]:
         """The resolved acceleration, the number of obstacle leaves and the metric's condition."""

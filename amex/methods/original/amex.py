@@ -154,7 +154,7 @@ class AMEXOriginal(Method):
         """See :meth:`Method.step`."""
         with np.errstate(divide="ignore", invalid="ignore"):
             target = self.update(obs.y, obs.goal)
-        return Command(y=target.y_star, yd=target.yd_star)
+        return Command.task(target.y_star, target.yd_star)
 
     def internals(self) -> dict[str, Any]:
         """Phase s and the Eq. 8 factors of the last update (as :class:`AMEX`)."""

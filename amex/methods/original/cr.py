@@ -156,7 +156,7 @@ class CROriginal(Method):
         else:
             self.replan(obs)
         x = self._x
-        return Command(q=x[1].copy(), qd=(x[1] - x[0]) / self.dt)
+        return Command.joint(x[1].copy(), (x[1] - x[0]) / self.dt)
 
     def internals(self) -> dict[str, Any]:
         """Mode, horizon, iterations, cost, converged and solve time of the last step."""

@@ -117,7 +117,7 @@ class DMPOriginal(Method):
     def step(self, obs: Observation) -> Command:
         """See :meth:`Method.step`."""
         target = self.update(obs.goal)
-        return Command(y=target.y_star, yd=target.yd_star)
+        return Command.task(target.y_star, target.yd_star)
 
     def internals(self) -> dict[str, Any]:
         """The phase x."""
