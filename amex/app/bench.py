@@ -246,6 +246,25 @@ def _print_startup(quick: bool) -> None:
             f"max {max(values):.3f})  floor {floor:6.3f} s  ratio {_ratio(median, floor)}, "
             f"Numba floor {numba_floor:6.3f} s  ratio {_ratio(median, numba_floor)}"
         )
+    _print_startup_phases(2 if quick else 3)
+
+
+def _print_startup_phases(repeats: int) -> None:
+    """A warm start-up's CPU, phase by phase (bench_startup.startup_phases), medians."""
+    from amex.app.bench_startup import PHASES, startup_phases
+
+    phases = startup_phases(repeats)
+    median = {key: statistics.median(values) for key, values in phases.items()}
+    print(f" a warm start-up phase by phase (process CPU, median of {repeats}):")
+    for key, label in PHASES:
+        print(f"  {label:<68} {median[key]:6.3f} s")
+    hydra = median["schemas"] + median["composition"] + median["hydra_job"]
+    below = median["libraries"] + median["numba"] + median["interpreter"] + hydra
+    print(
+        f"  whole process {median['total']:.3f} s; of it Hydra's ConfigStore, composition and "
+        f"job {hydra:.3f} s, which with the Numba floor and the interpreter make {below:.3f} s "
+        "before any of amex's own work"
+    )
 
 
 def _print_log_cost(quick: bool) -> None:

@@ -14,6 +14,12 @@ no on-screen OpenGL), then exiting:
 - ``numba_floor``: the same, and Numba's CPU target initialised, which the first call of any
   compiled function pays, cached or not (its registries of typing and lowering, and its runtime
   compiled by LLVM).
+
+:func:`startup_phases` splits a warm start-up into its phases (:data:`PHASES`), each timed in
+the process itself (``time.process_time``) around the functions ``amex-run`` calls: the two
+floors first, then amex's imports, Hydra's ConfigStore, Hydra's composition, amex's checks of it,
+Hydra's job around amex's, and the episode. What the process spends before its first line and
+after its last (the interpreter's start and exit) is the whole process's CPU minus their sum.
 """
 
 from __future__ import annotations
@@ -41,6 +47,64 @@ RUN_ENVIRONMENT = {
     "MKL_NUM_THREADS": "1",
     "MUJOCO_GL": "disable",
 }
+
+
+#: The phases of a warm start-up (:func:`startup_phases`), in the order they happen.
+PHASES = (
+    ("libraries", "importing the libraries (the floor)"),
+    ("numba", "Numba's CPU target initialised"),
+    ("amex_imports", "amex's modules"),
+    ("schemas", "the schemas stored in Hydra's ConfigStore"),
+    ("composition", "Hydra composing the command line's config"),
+    ("checks", "amex checking the config and the run directory"),
+    ("hydra_job", "Hydra's job around amex's (run directory, logging, .hydra files)"),
+    ("job", "amex's job besides its episode (results written)"),
+    ("episode", f"the episode's set-up and its {STEPS} steps"),
+    ("other", "amex-run's own rest (arguments, launch lock, Hydra's search path)"),
+    ("interpreter", "the interpreter's start and exit"),
+)
+
+#: Run in a child (argv: the output file, then amex-run's arguments): amex-run's warm start-up
+#: with each phase's process CPU time recorded around the functions that make it.
+_PHASES_SCRIPT = f"""
+import json, sys, time
+out, sys.argv = sys.argv[1], ["amex-run", *sys.argv[2:]]
+cpu = time.process_time
+start = cpu()
+spent = {{"boot": start}}
+import {FLOOR_IMPORTS}
+spent["libraries"] = cpu() - start
+start = cpu()
+{NUMBA_INIT}
+spent["numba"] = cpu() - start
+start = cpu()
+import amex.app.cli, amex.app.checks, amex.app.compose, amex.app.job, amex.app.launch
+import amex.experiment.runner
+spent["amex_imports"] = cpu() - start
+
+def timed(module, name, key):
+    inner = getattr(module, name)
+    def call(*args, **kwargs):
+        begin = cpu()
+        try:
+            return inner(*args, **kwargs)
+        finally:
+            spent[key] = spent.get(key, 0.0) + cpu() - begin
+    setattr(module, name, call)
+
+timed(amex.app.compose, "register_schemas", "schemas")
+timed(amex.app.launch, "compose_run", "composition")
+timed(amex.app.checks, "validate_command_line", "validation")
+timed(amex.app.launch, "run_composed", "run_composed")
+timed(amex.app.job, "task", "task")
+timed(amex.experiment.runner, "run_setup", "episode")
+try:
+    amex.app.cli.run_main()
+finally:
+    spent["in_process"] = cpu()
+    with open(out, "w") as f:
+        json.dump(spent, f)
+"""
 
 
 class StartupTimes(NamedTuple):
@@ -94,3 +158,41 @@ def startup_times(repeats: int = 5) -> StartupTimes:
             times.floor.append(_child_cpu(floor_cmd, env, tmp))
             times.numba_floor.append(_child_cpu(numba_cmd, env, tmp))
     return times
+
+
+def startup_phases(repeats: int = 3) -> dict[str, list[float]]:
+    """CPU seconds of each phase of a warm start-up (:data:`PHASES`), one entry per repetition.
+
+    Each repetition is one child process running ``amex-run``'s warm start-up with its phases
+    timed (module notes); a first, untimed run fills the caches. ``total`` is the whole
+    process's user + system CPU, as :func:`startup_times` measures it.
+    """
+    import json
+
+    from amex.app.warm import warm_bytecode
+
+    warm_bytecode()
+    env = {**os.environ, **{k: os.environ.get(k, v) for k, v in RUN_ENVIRONMENT.items()}}
+    phases: dict[str, list[float]] = {key: [] for key, _ in PHASES}
+    phases["total"] = []
+    with tempfile.TemporaryDirectory() as tmp:
+        env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
+        _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
+        for k in range(repeats):
+            out = Path(tmp) / f"phases{k}.json"
+            command = [sys.executable, "-c", _PHASES_SCRIPT, str(out)]
+            command += _run_command(Path(tmp) / f"phases{k}")[1:]
+            total = _child_cpu(command, env, tmp)
+            spent = json.loads(out.read_text())
+            spent["checks"] = spent.pop("validation") - spent["composition"]
+            spent["hydra_job"] = spent.pop("run_composed") - spent["task"]
+            spent["job"] = spent.pop("task") - spent["episode"]
+            boot, in_process = spent.pop("boot"), spent.pop("in_process")
+            spent["interpreter"] = (
+                boot + total - in_process
+            )  # before the first line, after the last
+            timed = sum(spent[key] for key, _ in PHASES if key not in ("other", "interpreter"))
+            spent["other"] = in_process - boot - timed
+            for key in phases:
+                phases[key].append(total if key == "total" else spent[key])
+    return phases

@@ -46,6 +46,24 @@ def test_startup_is_timed_warm_cold_and_beside_both_floors():
     assert times.cold[0] > 2 * times.warm[0]
 
 
+def test_startup_phases_add_up_to_the_whole_process():
+    """Every phase is timed around what amex-run really calls: a renamed function, a phase never
+    reached or a phase counted twice breaks the sum or a bound."""
+    from amex.app.bench_startup import PHASES, startup_phases
+
+    phases = startup_phases(repeats=1)
+    assert set(phases) == {key for key, _ in PHASES} | {"total"}
+    spent = {key: values[0] for key, values in phases.items()}
+    total = spent.pop("total")
+    assert sum(spent.values()) == pytest.approx(total, abs=1e-9)
+    for key in ("libraries", "numba", "amex_imports", "schemas", "composition", "episode"):
+        assert spent[key] > 0.0, key
+    # the libraries are the largest part of a warm start-up; no phase is negative beyond the
+    # resolution of the two clocks compared (getrusage's total, process_time's phases)
+    assert spent["libraries"] == max(spent.values())
+    assert min(spent.values()) > -0.01
+
+
 def test_cr_floor_replays_the_compiled_loops_own_calls(monkeypatch):
     """The floor of a step on the compiled loop: its kinematics kernel in place of Pinocchio's
     three calls, LAPACK's dpbsv, and nothing of the step's Python."""
