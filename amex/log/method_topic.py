@@ -12,7 +12,9 @@ the reader gives as None.
 
 :meth:`MethodTopic.encode` writes a step through a recipe made once per combination of keys and
 value types: one converter per key, the common types' without a type test (~1.5 us for AMEX's
-15 numbers; their shortest texts took ~15 us). :meth:`MethodTopic.reference_encode` converts
+15 numbers; their shortest texts took ~15 us). Where every value is a number (AMEX's, the DMP's,
+CR's steps), the recipe is one ``struct`` pack of ``t`` and all the fields, keys included: the
+same bytes as the converters' concatenation. :meth:`MethodTopic.reference_encode` converts
 each value by the general rule (:func:`_encoded`), the oracle (tests/log/test_method_topic.py
 compares them).
 """
@@ -21,7 +23,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -34,8 +36,28 @@ MAX_ARRAY = 64  # entries of the largest array that is logged per step
 _PROTO_KIND = {"number": "double", "boolean": "bool", "string": "string", "array": "doubles"}
 
 Converter = Callable[[Any], bytes]  # a value's field (key included), b"": absent
-#: A step's values to encode: their converters and the values (:meth:`MethodTopic.capture`).
-Captured = tuple[tuple[Converter, ...], list[Any]]
+_NUMBER_TYPES = (float, np.float64, int, np.int64)  # written as doubles without a type test
+
+
+class Recipe(NamedTuple):
+    """How the steps of one combination of keys and value types are encoded (module notes).
+
+    Attributes:
+        converters: per value, its field's converter.
+        arrays: the indices of the values that are arrays or lists (copied when captured).
+        packed: where every value is a number, the message's ``struct`` (``t``, then each
+            field's key and double), else None.
+        arguments: the pack's arguments with the keys in place (``t`` and the values as 0.0).
+    """
+
+    converters: tuple[Converter, ...]
+    arrays: tuple[int, ...]
+    packed: struct.Struct | None
+    arguments: tuple[Any, ...]
+
+
+#: A step's values to encode: their recipe and the values (:meth:`MethodTopic.capture`).
+Captured = tuple[Recipe, list[Any]]
 
 
 def _kind_of(value: Any) -> str | None:
@@ -54,7 +76,7 @@ class MethodTopic:
     def __init__(self) -> None:
         self.kinds: dict[str, str] | None = None
         self._keys: dict[str, bytes] = {}  # key -> its field's key bytes
-        self._recipes: dict[tuple[Any, ...], tuple[tuple[Converter, ...], tuple[int, ...]]] = {}
+        self._recipes: dict[tuple[Any, ...], Recipe] = {}
         self._logged: dict[tuple[str, ...], tuple[str, ...]] = {}  # a step's keys -> logged ones
 
     def schema(self, t: float, internals: dict[str, Any]) -> P.FlatSchema:
@@ -106,10 +128,10 @@ class MethodTopic:
         values = list(internals.values()) if logged is keys else [internals[k] for k in logged]
         signature = (logged, tuple(map(type, values)))
         try:
-            recipe, arrays = self._recipes[signature]
+            recipe = self._recipes[signature]
         except KeyError:
-            recipe, arrays = self._recipes[signature] = self._recipe(*signature)
-        for i in arrays:  # lists and small arrays are copied; larger ones are left out
+            recipe = self._recipes[signature] = self._recipe(*signature)
+        for i in recipe.arrays:  # lists and small arrays are copied; larger ones are left out
             value = values[i]
             if type(value) is list or value.size <= MAX_ARRAY:
                 values[i] = value.copy()
@@ -118,8 +140,13 @@ class MethodTopic:
     def encode_captured(self, t: float, captured: Captured) -> bytes:
         """The message of a step at time ``t`` [s] from its :meth:`capture`."""
         recipe, values = captured
+        if recipe.packed is not None:  # every value a number: one pack
+            arguments = list(recipe.arguments)
+            arguments[1] = t
+            arguments[3::2] = values
+            return recipe.packed.pack(*arguments)
         parts = [b"\x09" + P.DOUBLE.pack(t)]
-        parts += [convert(value) for convert, value in zip(recipe, values, strict=True)]
+        parts += [convert(value) for convert, value in zip(recipe.converters, values, strict=True)]
         return b"".join(parts)
 
     def _logged_keys(self, keys: tuple[str, ...]) -> tuple[str, ...]:
@@ -138,17 +165,23 @@ class MethodTopic:
                 parts.append(_encoded(self._keys[key], kinds[key], value))
         return b"".join(parts)
 
-    def _recipe(
-        self, keys: tuple[str, ...], types: tuple[type, ...]
-    ) -> tuple[tuple[Converter, ...], tuple[int, ...]]:
-        """Per key (all of the schema, :meth:`encode`), the converter of its value; the arrays."""
+    def _recipe(self, keys: tuple[str, ...], types: tuple[type, ...]) -> Recipe:
+        """The :class:`Recipe` of steps of these keys (all of the schema's) and value types."""
         kinds = self.kinds or {}
         converters = tuple(
             _converter(self._keys[key], kinds[key], value_type)
             for key, value_type in zip(keys, types, strict=True)
         )
         arrays = tuple(i for i, kind in enumerate(types) if kind is np.ndarray or kind is list)
-        return converters, arrays
+        numbers = all(
+            kinds[key] == "number" and value_type in _NUMBER_TYPES
+            for key, value_type in zip(keys, types, strict=True)
+        )
+        if not numbers:
+            return Recipe(converters, arrays, None, ())
+        fields = [(b"\x09", 0.0)] + [(self._keys[key], 0.0) for key in keys]
+        packed = struct.Struct("<" + "".join(f"{len(key)}sd" for key, _ in fields))
+        return Recipe(converters, arrays, packed, tuple(x for field in fields for x in field))
 
 
 def _absent(value: Any) -> bytes:
@@ -159,7 +192,7 @@ def _converter(key: bytes, kind: str, value_type: type) -> Converter:
     """The converter of values of ``value_type`` under a schema ``kind`` (field key ``key``)."""
     if value_type is type(None):
         return _absent
-    if kind == "number" and value_type in (float, np.float64, int, np.int64):
+    if kind == "number" and value_type in _NUMBER_TYPES:
         double = struct.Struct(f"<{len(key)}sd")
         return lambda value: double.pack(key, value)
     if kind == "boolean" and value_type is bool:

@@ -41,6 +41,10 @@ def _variants(rng):
     yield {**_first(), "y_star": None, "maybe": 1.5}
     yield {"mode": "grow", "new_key": 1.0, "s": 0.5}  # keys missing, a new one, another order
     yield {"t": 99.0, "s": 0.5}  # a key named t is not the time
+    # every value a number (one pack): floats, numpy's, ints, non-finite ones, in another order
+    yield {"iters": np.int64(-3), "s": math.inf, "delta_g": np.float64(math.nan), "steps": 7}
+    yield {"s": 0.25, "delta_g": -0.0, "steps": 2**53 + 1, "iters": 4.5}
+    yield {"s": 0.25, "steps": True}  # a flag where a number is: not one pack
     yield {}
 
 
