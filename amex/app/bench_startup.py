@@ -67,7 +67,7 @@ PHASES = (
 #: Run in a child (argv: the output file, then amex-run's arguments): amex-run's warm start-up
 #: with each phase's process CPU time recorded around the functions that make it.
 _PHASES_SCRIPT = f"""
-import json, sys, time
+import atexit, json, sys, time
 out, sys.argv = sys.argv[1], ["amex-run", *sys.argv[2:]]
 cpu = time.process_time
 start = cpu()
@@ -98,12 +98,13 @@ timed(amex.app.checks, "validate_command_line", "validation")
 timed(amex.app.launch, "run_composed", "run_composed")
 timed(amex.app.job, "task", "task")
 timed(amex.experiment.runner, "run_setup", "episode")
-try:
-    amex.app.cli.run_main()
-finally:
+def report():  # an exit handler: amex-run's quick exit runs it (amex.app.cli.exit_quickly)
     spent["in_process"] = cpu()
     with open(out, "w") as f:
         json.dump(spent, f)
+
+atexit.register(report)
+amex.app.cli.main()
 """
 
 

@@ -6,6 +6,12 @@ a run directory. Only then does Hydra run the job(s) (:func:`amex.app.job.task`)
 (a full disk, a locked directory) is one line too, with the number of episodes kept; Ctrl-C and
 SIGTERM stop the run or the whole sweep, workers included, and say that the same command
 resumes. ``AMEX_DEBUG=1`` shows tracebacks.
+
+A single run that finished ends without the interpreter's teardown (:func:`main`): its exit
+handlers run (logging's flush and close among them), the standard streams are flushed, and the
+process exits with code 0, skipping the freeing of every module and object one by one, ~0.05 s of
+CPU per process (``make bench``, start-up). Where a thread other than the main one is alive, or
+for a sweep, or after an error, the process exits as usual.
 """
 
 from __future__ import annotations
@@ -138,3 +144,33 @@ def run_main() -> None:
         line, code = closing_line(e)
         say(line)
         raise SystemExit(code) from None
+
+
+def main() -> None:
+    """``amex-run`` (the console script): :func:`run_main`, then a single run exits quickly."""
+    run_main()
+    if not {"-m", "--multirun"}.intersection(sys.argv[1:]):
+        exit_quickly()
+
+
+def exit_quickly() -> None:
+    """Exit with code 0 after the exit handlers, without the interpreter's teardown (notes).
+
+    Returns (so the interpreter exits as usual) where that could lose anything: another thread
+    is alive (the interpreter would wait for it), the exit handlers cannot be run here, or a
+    standard stream does not flush.
+    """
+    import atexit
+    import threading
+
+    run_handlers = getattr(atexit, "_run_exitfuncs", None)  # CPython's, since 2.x
+    if threading.active_count() > 1 or run_handlers is None:
+        return
+    run_handlers()
+    try:
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
+    except (OSError, ValueError):  # a closed or broken stream: the usual exit reports it
+        return
+    os._exit(0)
