@@ -11,8 +11,11 @@ episode loop calls only for a recorder.
 
 Nothing here asserts a time. ``python -m amex.app.bench_log --tasks 1 2 3 4 --methods amex dmp cr``
 prints, per task and method, the median and p95 of the per-episode overhead ``logged / plain - 1``,
-and beside it its floor: the SDK writing the same log file again alone (:func:`sdk_floor`), over
-the plain episode.
+and beside it two floors, over the plain episode: the SDK writing the same log file again alone
+(:func:`sdk_floor`), and the same episode run a third time with a recorder that writes the logged
+episode's messages, already encoded, through the SDK as the steps come, taking each step's
+values as a logger must (:class:`ReplayRecorder`): what any logger of these messages through the
+SDK costs inside the episode, before encoding anything.
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ class LogOverhead(NamedTuple):
     """Per-episode times of the same environments, plain and logged [s] (shape (envs,) each).
 
     ``floor_cpu``: the thread CPU time of the SDK writing the logged episode's file again
-    alone (:func:`sdk_floor`).
+    alone (:func:`sdk_floor`); ``replay_cpu``: the episode's, with :class:`ReplayRecorder`
+    writing that file's messages again.
     """
 
     plain_cpu: np.ndarray
@@ -45,10 +49,15 @@ class LogOverhead(NamedTuple):
     plain_wall: np.ndarray
     logged_wall: np.ndarray
     floor_cpu: np.ndarray
+    replay_cpu: np.ndarray
 
     def floor(self) -> np.ndarray:
         """The SDK's floor over the plain episode, ``floor / plain`` per episode [-]."""
         return self.floor_cpu / self.plain_cpu
+
+    def replay(self) -> np.ndarray:
+        """The replaying recorder's cost, ``replayed / plain - 1`` per episode [-]."""
+        return self.replay_cpu / self.plain_cpu - 1.0
 
     def overhead(self, clock: str = "thread") -> np.ndarray:
         """``logged / plain - 1`` per episode, in ``clock`` (``thread`` or ``wall``) [-]."""
@@ -69,16 +78,39 @@ def sdk_floor(path: Path, out: Path) -> float:
     metadata records, the close. What ``log=full`` spends beyond this is amex's: taking the
     steps' values, encoding the messages, the scene, and the caches they cool.
     """
-    import foxglove
-    from mcap.reader import make_reader
+    messages, records = _read_log(path)
+    cpu = time.thread_time_ns()
+    context, writer, channels = _open_again(out, messages)  # the context lives to the close
+    for name, values in records[:1]:  # the header (the rest are written last, as the logs do)
+        writer.write_metadata(name, values)
+    for _, channel, message in messages:
+        channels[channel.id].log(message.data, message.log_time)
+    for name, values in records[1:]:
+        writer.write_metadata(name, values)
+    for base in channels.values():
+        base.close()
+    writer.close()
+    del context
+    return (time.thread_time_ns() - cpu) * 1e-9
 
-    from amex.log.writer import write_options
+
+def _read_log(path: Path) -> tuple[list[Any], list[tuple[str, dict[str, str]]]]:
+    """A log's ``(schema, channel, message)`` in the order written, and its metadata records."""
+    from mcap.reader import make_reader
 
     with open(path, "rb") as f:
         reader = make_reader(f)
         messages = list(reader.iter_messages(log_time_order=False))
         records = [(m.name, m.metadata) for m in reader.iter_metadata()]
-    cpu = time.thread_time_ns()
+    return messages, records
+
+
+def _open_again(out: Path, messages: list[Any]) -> tuple[Any, Any, dict[int, Any]]:
+    """The SDK's context, MCAP writer (the logs' options) and channels of ``messages``."""
+    import foxglove
+
+    from amex.log.writer import write_options
+
     context = foxglove.Context()
     writer = foxglove.open_mcap(out, context=context, writer_options=write_options())
     channels: dict[int, Any] = {}
@@ -91,16 +123,83 @@ def sdk_floor(path: Path, out: Path) -> float:
                 channel.topic, message_encoding=channel.message_encoding, schema=kind,
                 context=context,
             ).base  # fmt: skip
-    for name, values in records[:1]:  # the header (the rest are written last, as the logs do)
-        writer.write_metadata(name, values)
-    for _, channel, message in messages:
-        channels[channel.id].log(message.data, message.log_time)
-    for name, values in records[1:]:
-        writer.write_metadata(name, values)
-    for base in channels.values():
-        base.close()
-    writer.close()
-    return (time.thread_time_ns() - cpu) * 1e-9
+    return context, writer, channels
+
+
+class ReplayRecorder:
+    """A recorder writing a logged episode's messages again, through the SDK, as its steps come.
+
+    Made from the log of the same episode (read when made, before the episode is timed). Its
+    steps take what a logger must take of each step: the episode loop calls the method's
+    ``internals()`` and makes the step's record for any recorder, and :meth:`record` copies the
+    step's joint and task-space values into rows, as :meth:`amex.log.batch.StepBatch.add` does;
+    then it logs every message of the log stamped up to the step's time, already encoded, in
+    the log's order. The SDK's context, file and channels are made at the first step, the
+    header record with them; :meth:`finish` logs the rest, the other records, and closes.
+    """
+
+    def __init__(self, log: Path, out: Path, capacity: int = 50) -> None:
+        messages, self._records = _read_log(log)
+        order = sorted(range(len(messages)), key=lambda i: messages[i][2].log_time)  # stable
+        self._messages = [messages[i] for i in order]
+        self._times = [m.log_time for _, _, m in self._messages]
+        self._data = [m.data for _, _, m in self._messages]
+        self._logs: list[Any] = []  # per message, its channel's log (once the file is open)
+        self._out = out
+        self._next = 0
+        self._open: tuple[Any, Any, dict[int, Any]] | None = None
+        self._capacity, self._row = capacity, 0
+        self._rows: list[np.ndarray] | None = None
+
+    def _start(self) -> None:
+        """The SDK's context, file and channels, and the header record."""
+        self._open = _open_again(self._out, self._messages)
+        channels = self._open[2]
+        self._logs = [channels[channel.id].log for _, channel, _ in self._messages]
+        for name, record in self._records[:1]:
+            self._open[1].write_metadata(name, record)
+
+    def _log_until(self, ns: int) -> None:
+        logs, data, times, k, n = self._logs, self._data, self._times, self._next, len(self._logs)
+        while k < n and times[k] <= ns:
+            logs[k](data[k], times[k])
+            k += 1
+        self._next = k
+
+    def record(self, step: Any) -> None:
+        """Copy the step's values into a row, then log its messages (class notes)."""
+        if self._open is None:
+            self._start()
+        state, obs = step.state, step.observation
+        values = (state.q, state.v, step.qacc, step.tau, obs.y, obs.yd, obs.goal[:3])
+        if self._rows is None:
+            self._rows = [np.zeros((self._capacity, len(v))) for v in values]
+        i = self._row
+        for rows, value in zip(self._rows, values, strict=True):
+            rows[i] = value
+        self._row = (i + 1) % self._capacity
+        self._log_until(round(step.t * 1e9))
+
+    def finish(self, result: Any) -> None:
+        """Log the rest of the messages, the other metadata records, and close the file."""
+        if self._open is None:
+            self._start()
+        self._log_until(self._times[-1] if self._times else 0)
+        assert self._open is not None
+        context, writer, channels = self._open
+        for name, values in self._records[1:]:
+            writer.write_metadata(name, values)
+        for base in channels.values():
+            base.close()
+        writer.close()
+
+
+def _replayed(run: Any, env: int, log: Path, out: Path) -> tuple[float, float]:
+    """Thread CPU and wall time of environment ``env`` recorded by a :class:`ReplayRecorder`."""
+    from amex.experiment.runner import run_setup_with
+
+    recorder = ReplayRecorder(log, out)  # reads the log: not timed
+    return _timed(lambda: run_setup_with(run, env, recorder))
 
 
 def _timed(run: object) -> tuple[float, float]:
@@ -131,7 +230,7 @@ def log_overhead(
 
     config = load_config([f"task={task}", f"method={method}", *overrides])
     run = setup(config, prepare(config))
-    rows: list[tuple[float, float, float, float, float]] = []
+    rows: list[tuple[float, ...]] = []
     with tempfile.TemporaryDirectory(prefix="amex-bench-log-") as tmp:
         first = next(iter(envs), 0)
         run_setup(run, first)  # warm-up, not counted
@@ -142,16 +241,19 @@ def log_overhead(
             logged = _timed(lambda env=env, path=path: run_setup(run, env, path))
             again = path.with_suffix(".again.mcap")
             floor = sdk_floor(path, again)
+            again.unlink()
+            replayed = _replayed(run, env, path, again)
             path.unlink()
             again.unlink()
-            rows.append((plain[0], logged[0], plain[1], logged[1], floor))
+            rows.append((plain[0], logged[0], plain[1], logged[1], floor, replayed[0]))
             if verbose:
                 print(
                     f"  env {env}: thread CPU plain {plain[0]:.3f} s, logged {logged[0]:.3f} s "
                     f"(+{(logged[0] / plain[0] - 1) * 100:.0f} %); wall plain {plain[1]:.3f} s, "
-                    f"logged {logged[1]:.3f} s; the SDK alone {floor:.4f} s"
+                    f"logged {logged[1]:.3f} s; the SDK alone {floor:.4f} s; replayed "
+                    f"{replayed[0]:.3f} s"
                 )
-    times = np.array(rows).reshape(-1, 5)
+    times = np.array(rows).reshape(-1, 6)
     result = LogOverhead(*times.T)
     if verbose:
         print(summary(task, method, result))
@@ -166,7 +268,8 @@ def summary(task: int, method: str, result: LogOverhead) -> str:
         f"+{np.median(cpu):.1f} % (p95 +{np.percentile(cpu, 95):.1f} %), wall median "
         f"+{np.median(wall):.1f} % (p95 +{np.percentile(wall, 95):.1f} %); plain episode "
         f"{np.median(result.plain_cpu) * 1e3:.0f} ms thread CPU; floor (the SDK writing the "
-        f"same log alone) +{np.median(result.floor()) * 100:.1f} %"
+        f"same log alone) +{np.median(result.floor()) * 100:.1f} %; replayed (its messages "
+        f"written as the steps come, their values taken) +{np.median(result.replay()) * 100:.1f} %"
     )
 
 

@@ -39,9 +39,15 @@ from amex.plan.reference import ReferencePlan
 from amex.robot import RobotModel, load_robot
 from amex.robot.geometry import joint_metric
 from amex.sim.episode import run_episode
-from amex.sim.loop import LoopConfig
+from amex.sim.loop import LoopConfig, Recorder
 from amex.sim.metrics import EpisodeResult, summarize
-from amex.sim.scenario import ScenarioConfig, make_scenario, plan_goal, with_reference_goal
+from amex.sim.scenario import (
+    Scenario,
+    ScenarioConfig,
+    make_scenario,
+    plan_goal,
+    with_reference_goal,
+)
 
 log = logging.getLogger(__name__)
 
@@ -166,20 +172,39 @@ def setup(config: RunConfig, context: RunContext) -> EpisodeSetup:
 
 def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> EpisodeResult:
     """Environment ``env`` of ``setup``'s task with its method; logged as MCAP to ``log_path``."""
-    context = setup.context
-    method = setup.method(context.plan, setup.params, setup.outer_dt, context.robot)
-    scenario = make_scenario(
-        setup.scene, setup.task, setup.seed, env, context.plan.y[0, :3], context.plan.duration
-    )
-    args = (context.robot, method, scenario, setup.gains, setup.loop)
-    world = {**setup.world, "reference_path": context.plan.y[:, :3]}
     if log_path is None:
-        return run_episode(*args, **world)
+        return run_setup_with(setup, env, None)
     from amex.log import EpisodeLogger
 
+    context = setup.context
+    method, scenario = _method(setup), _scenario(setup, env)  # before the log's file is made
     metadata = {"task": setup.task, "method": method.name, "env": env, "seed": setup.seed}
     with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
-        return run_episode(*args, logger, **world)
+        return _episode(setup, method, scenario, logger)
+
+
+def run_setup_with(setup: EpisodeSetup, env: int, recorder: Recorder | None) -> EpisodeResult:
+    """Environment ``env`` of ``setup``'s task with its method, its steps given to ``recorder``."""
+    return _episode(setup, _method(setup), _scenario(setup, env), recorder)
+
+
+def _method(setup: EpisodeSetup) -> Method:
+    context = setup.context
+    return setup.method(context.plan, setup.params, setup.outer_dt, context.robot)
+
+
+def _scenario(setup: EpisodeSetup, env: int) -> Scenario:
+    plan = setup.context.plan
+    return make_scenario(setup.scene, setup.task, setup.seed, env, plan.y[0, :3], plan.duration)
+
+
+def _episode(
+    setup: EpisodeSetup, method: Method, scenario: Scenario, recorder: Recorder | None
+) -> EpisodeResult:
+    context = setup.context
+    args = (context.robot, method, scenario, setup.gains, setup.loop)
+    world = {**setup.world, "reference_path": context.plan.y[:, :3]}
+    return run_episode(*args, recorder, **world)
 
 
 def run_one(

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from amex.app.bench_log import log_overhead, main, sdk_floor
+from amex.app.bench_log import ReplayRecorder, log_overhead, main, sdk_floor
 from amex.experiment.config import RunConfig
-from amex.experiment.runner import prepare, run_one
+from amex.experiment.runner import prepare, run_one, run_setup_with, setup
 from amex.log import read_log
 from amex.methods import METHODS
 
@@ -16,8 +16,9 @@ def test_log_overhead_times_each_environment_plain_and_logged():
     assert all(len(part) == 2 for part in result)
     assert np.all(result.plain_cpu > 0) and np.all(result.logged_cpu > 0)
     assert np.all(result.plain_wall > 0) and np.all(result.logged_wall > 0)
-    assert np.all(result.floor_cpu > 0)
+    assert np.all(result.floor_cpu > 0) and np.all(result.replay_cpu > 0)
     np.testing.assert_allclose(result.floor(), result.floor_cpu / result.plain_cpu)
+    np.testing.assert_allclose(result.replay(), result.replay_cpu / result.plain_cpu - 1)
     np.testing.assert_allclose(result.overhead("wall"), result.logged_wall / result.plain_wall - 1)
     with pytest.raises(ValueError, match="valid: thread, wall"):
         result.overhead("process")
@@ -45,3 +46,23 @@ def messages(path):
     with open(path, "rb") as f:
         reader = make_reader(f)
         return [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages()]
+
+
+def test_the_replaying_recorder_writes_the_logs_messages_as_the_steps_come(tmp_path):
+    config = RunConfig(task=3, max_time=0.3)
+    config.method = METHODS["amex"].config_class()
+    run = setup(config, prepare(config))
+    path = tmp_path / "episode.mcap"
+    logged = run_one(config, prepare(config), 0, path)
+    recorder = ReplayRecorder(path, tmp_path / "again.mcap")
+    logs = []
+    record = recorder.record
+    recorder.record = lambda step: logs.append((step.t, recorder._next)) or record(step)
+    replayed = run_setup_with(run, 0, recorder)
+    same = [key for key in logged.as_row() if "compute" not in key]  # timing columns aside
+    assert [replayed.as_row()[k] for k in same] == [logged.as_row()[k] for k in same]
+    again = read_log(tmp_path / "again.mcap")
+    assert again.outcome == read_log(path).outcome and not again.damage
+    assert sorted(messages(tmp_path / "again.mcap")) == sorted(messages(path))
+    # each step wrote what the log stamps up to its time, not all at the end
+    assert len(logs) > 20 and logs[0][1] < logs[-1][1] < len(messages(path))
