@@ -189,9 +189,8 @@ def startup_phases(repeats: int = 3) -> dict[str, list[float]]:
             spent["hydra_job"] = spent.pop("run_composed") - spent["task"]
             spent["job"] = spent.pop("task") - spent["episode"]
             boot, in_process = spent.pop("boot"), spent.pop("in_process")
-            spent["interpreter"] = (
-                boot + total - in_process
-            )  # before the first line, after the last
+            # the interpreter's part: before the script's first line and after its exit handler
+            spent["interpreter"] = boot + total - in_process
             timed = sum(spent[key] for key, _ in PHASES if key not in ("other", "interpreter"))
             spent["other"] = in_process - boot - timed
             for key in phases:
