@@ -9,7 +9,7 @@ resumes. ``AMEX_DEBUG=1`` shows tracebacks.
 
 A single run that finished ends without the interpreter's teardown (:func:`main`): its exit
 handlers run (logging's flush and close among them), the standard streams are flushed, and the
-process exits with code 0, skipping the freeing of every module and object one by one, ~0.05 s of
+process exits with code 0, skipping the freeing of every module and object one by one, ~0.02 s of
 CPU per process (``make bench``, start-up). Where a thread other than the main one is alive, or
 for a sweep, or after an error, the process exits as usual.
 """

@@ -12,11 +12,11 @@ the reader gives as None.
 
 :meth:`MethodTopic.encode` writes a step through a recipe made once per combination of keys and
 value types: one converter per key, the common types' without a type test (~1.5 us for AMEX's
-15 numbers; their shortest texts took ~15 us). Where every value is a number (AMEX's, the DMP's,
-CR's steps), the recipe is one ``struct`` pack of ``t`` and all the fields, keys included: the
-same bytes as the converters' concatenation. :meth:`MethodTopic.reference_encode` converts
-each value by the general rule (:func:`_encoded`), the oracle (tests/log/test_method_topic.py
-compares them).
+15 numbers; their shortest texts took ~15 us). Where every value is a number (the DMP's steps;
+AMEX's carry arrays, CR's texts), the recipe is one ``struct`` pack of ``t`` and all the fields,
+keys included: the same bytes as the converters' concatenation.
+:meth:`MethodTopic.reference_encode` converts each value by the general rule (:func:`_encoded`),
+the oracle (tests/log/test_method_topic.py compares them).
 """
 
 from __future__ import annotations
