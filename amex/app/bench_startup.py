@@ -24,11 +24,13 @@ after its last (the interpreter's start and exit) is the whole process's CPU min
 
 from __future__ import annotations
 
+import contextlib
 import os
 import resource
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import NamedTuple
 
@@ -136,22 +138,33 @@ def _run_command(run_dir: Path) -> list[str]:
     ]
 
 
+@contextlib.contextmanager
+def _warmed() -> Iterator[tuple[dict[str, str], str]]:
+    """The environment of the measured runs and their directory, after a first, uncounted run.
+
+    amex's bytecode is written first (:func:`amex.app.warm.warm_bytecode`, as ``make install``
+    does); the first run fills the reference plan's and Numba's caches.
+    """
+    from amex.app.warm import warm_bytecode
+
+    warm_bytecode()
+    env = {**os.environ, **{k: os.environ.get(k, v) for k, v in RUN_ENVIRONMENT.items()}}
+    with tempfile.TemporaryDirectory() as tmp:
+        env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
+        _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
+        yield env, tmp
+
+
 def startup_times(repeats: int = 5) -> StartupTimes:
     """Start-up CPU of ``amex-run``, warm and with a cold Numba cache, and its floor.
 
     The first warm run is discarded (it fills the reference plan's and Numba's caches); amex's
     bytecode is written first (:func:`amex.app.warm.warm_bytecode`, as ``make install`` does).
     """
-    from amex.app.warm import warm_bytecode
-
-    warm_bytecode()
-    env = {**os.environ, **{k: os.environ.get(k, v) for k, v in RUN_ENVIRONMENT.items()}}
     times = StartupTimes([], [], [], [])
-    with tempfile.TemporaryDirectory() as tmp:
-        env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
+    with _warmed() as (env, tmp):
         floor_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; gc.freeze()"]
         numba_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; {NUMBA_INIT}; gc.freeze()"]
-        _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
         for k in range(repeats):
             times.warm.append(_child_cpu(_run_command(Path(tmp) / f"warm{k}"), env, tmp))
             fresh = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / f"numba{k}"))
@@ -170,15 +183,9 @@ def startup_phases(repeats: int = 3) -> dict[str, list[float]]:
     """
     import json
 
-    from amex.app.warm import warm_bytecode
-
-    warm_bytecode()
-    env = {**os.environ, **{k: os.environ.get(k, v) for k, v in RUN_ENVIRONMENT.items()}}
     phases: dict[str, list[float]] = {key: [] for key, _ in PHASES}
     phases["total"] = []
-    with tempfile.TemporaryDirectory() as tmp:
-        env.setdefault("AMEX_CACHE_DIR", str(Path(tmp) / "cache"))
-        _child_cpu(_run_command(Path(tmp) / "run_first"), env, tmp)
+    with _warmed() as (env, tmp):
         for k in range(repeats):
             out = Path(tmp) / f"phases{k}.json"
             command = [sys.executable, "-c", _PHASES_SCRIPT, str(out)]
