@@ -19,10 +19,10 @@ import pinocchio as pin
 from amex.control.disturbance import DisturbanceConfig
 from amex.control.osc import Command, OSCGains
 from amex.control.state import RobotState
+from amex.core.compiled import kernel
 from amex.core.errors import AmexError, SimulationError, WriteError
 from amex.methods.base import Method
 from amex.robot import RobotModel
-from amex.sim import step_kernel
 from amex.sim.episode_reference import run_reference
 from amex.sim.episode_setup import Episode, Probe, check_simulation, method_step, observe
 from amex.sim.inner_step import StepMemory
@@ -31,7 +31,7 @@ from amex.sim.metrics import EpisodeResult
 from amex.sim.perception import PerceptionConfig, PredictionConfig
 from amex.sim.scenario import Scenario
 from amex.sim.simulation import MismatchConfig
-from amex.sim.step_kernel import BOTH, CONTROL, MEASURE, STOP
+from amex.sim.step_layout import BOTH, CONTROL, MEASURE, STOP
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
 
@@ -130,8 +130,9 @@ def _run(e: Episode, recorder: Recorder | None, probe: Probe | None = None) -> E
     )
     mem, x, zero_copy = memory.mem, memory.x, memory.zero_copy
     compiled = plain or kinematic  # the compiled CONTROL phase (else the compensation's torque)
-    step, clip = step_kernel.episode_step, step_kernel.clip_torque
-    speeds_ok = step_kernel.speeds_within_limit
+    step = kernel("amex.sim.step_kernel", "episode_step")
+    clip = kernel("amex.sim.step_kernel", "clip_torque")
+    speeds_ok = kernel("amex.sim.step_kernel", "speeds_within_limit")
     model, fid, zero_acc = robot.model, robot.tcp_frame_id, robot.zero_velocity
     fk, jacobians, rnea = pin.forwardKinematics, pin.computeJointJacobians, pin.rnea
     place, frame_jacobian = pin.updateFramePlacement, pin.getFrameJacobian

@@ -27,7 +27,7 @@ from amex.control.tasks import ProxyMap
 from amex.core.errors import InputError
 from amex.core.types import Command
 from amex.robot import RobotModel
-from amex.sim import step_kernel as sk
+from amex.sim import step_layout as sk
 from amex.sim.loop import LoopConfig
 from amex.sim.scenario import Scenario
 
@@ -72,7 +72,7 @@ class StepMemory:
             layout allows; False: always through copies (:meth:`sync`; tests).
 
     Attributes:
-        mem: the address vector, length :data:`~amex.sim.step_kernel.ADDRESSES`.
+        mem: the address vector, length :data:`~amex.sim.step_layout.ADDRESSES`.
         loop_state: the loop's state (path length, distance, goal, ...), as the kernel leaves it.
         zero_copy: the TCP placement and joint Jacobians are read in place (no :meth:`sync`).
         command: the command last held (:meth:`hold`).

@@ -14,9 +14,10 @@ and what :meth:`~amex.control.osc.OperationalSpaceController.accelerations` did 
 Every array it reads or writes lives at a fixed address for the episode: MuJoCo's ``qpos`` and
 ``qvel``, Pinocchio's TCP placement ``oMf`` and joint Jacobians ``J``, coal's distance results,
 the controller's work space and the loop's own state. A compiled call unboxes each array argument
-(~0.1-0.4 us each), so they travel as one int64 vector :data:`ADDRESSES` long whose entries are
-those addresses and the sizes (the slots below); :class:`amex.sim.inner_step.StepMemory` builds
-it and holds the arrays alive. Only the step's new Jacobian and drift (Pinocchio returns new
+(~0.1-0.4 us each), so they travel as one int64 vector
+:data:`~amex.sim.step_layout.ADDRESSES` long whose entries are those addresses and the sizes (the
+slots of :mod:`amex.sim.step_layout`); :class:`amex.sim.inner_step.StepMemory` builds it and
+holds the arrays alive. Only the step's new Jacobian and drift (Pinocchio returns new
 arrays) are arguments of their own.
 
 Bit for bit: the same IEEE operations in the same order as the Python and numpy code they replace
@@ -35,39 +36,71 @@ from numba import types
 from numba.extending import intrinsic
 
 from amex.control import collision_kernels, kernels
-
-#: phases of :func:`episode_step` (bit flags)
-MEASURE, CONTROL = 1, 2
-BOTH = MEASURE | CONTROL
-#: what :func:`episode_step` returns
-GO_ON, STOP, SOLVER_FAILED = 0, 1, 2
-#: collision task kinds (slot ``COLLISION``): off (no obstacles or not for the held command)
-NO_COLLISION, HINGE, PROXY = 0, 1, 2
-
-# slots of the address vector: the addresses of float64 arrays (int64 for the pair indices) ...
-(
-    QPOS, QVEL, TCP_POSE, JOINT_JACOBIANS, TABLE, PLACEMENTS, HISTORY, WORKSPACE, TARGETS, COL,
-    PARAMS, TORQUE_LOW, TORQUE_HIGH, TORQUE_OUT, LOOP, CONSTANTS, SUPPORT, PAIR_OBSTACLE,
-    PAIR_ARM, CENTERS, REACH, SPEED_LIMIT,
-    # ... then sizes and switches
-    N_JOINTS, N_PAIRS, TABLE_STRIDE, PLACEMENT_STRIDE, N_GEOMS, N_ARM, N_OBSTACLES, N_STEPS,
-    KINEMATIC, LAG, COLLISION,
-) = range(33)  # fmt: skip
-ADDRESSES = 33
-
-# the loop's state (slot LOOP), float64
-(
-    PATH_LENGTH, PREV_X, PREV_Y, PREV_Z, HAS_PREV, GOAL_X, GOAL_Y, GOAL_Z, DISTANCE, AXIS_X,
-    AXIS_Y, AXIS_Z, INFO,
-) = range(13)  # fmt: skip
-LOOP_SIZE = 13
-
-# the episode's constants (slot CONSTANTS), float64
-(
-    DT, STOP_RADIUS, GOAL_START, _GS1, _GS2, GOAL_VELOCITY, _GV1, _GV2, GOAL_STOP_TIME,
-    GOAL_MOVES_UNTIL, MARGIN, SQUARE,
-) = range(12)  # fmt: skip
-CONSTANTS_SIZE = 12
+from amex.sim.step_layout import (  # the slots, flags and sizes (module notes there)
+    AXIS_X,
+    AXIS_Y,
+    AXIS_Z,
+    CENTERS,
+    COL,
+    COLLISION,
+    CONSTANTS,
+    CONSTANTS_SIZE,
+    CONTROL,
+    DISTANCE,
+    DT,
+    GO_ON,
+    GOAL_MOVES_UNTIL,
+    GOAL_START,
+    GOAL_STOP_TIME,
+    GOAL_VELOCITY,
+    GOAL_X,
+    GOAL_Y,
+    GOAL_Z,
+    HAS_PREV,
+    HINGE,
+    HISTORY,
+    INFO,
+    JOINT_JACOBIANS,
+    KINEMATIC,
+    LAG,
+    LOOP,
+    LOOP_SIZE,
+    MARGIN,
+    MEASURE,
+    N_ARM,
+    N_GEOMS,
+    N_JOINTS,
+    N_OBSTACLES,
+    N_PAIRS,
+    N_STEPS,
+    NO_COLLISION,
+    PAIR_ARM,
+    PAIR_OBSTACLE,
+    PARAMS,
+    PATH_LENGTH,
+    PLACEMENT_STRIDE,
+    PLACEMENTS,
+    PREV_X,
+    PREV_Y,
+    PREV_Z,
+    QPOS,
+    QVEL,
+    REACH,
+    SOLVER_FAILED,
+    SPEED_LIMIT,
+    SQUARE,
+    STOP,
+    STOP_RADIUS,
+    SUPPORT,
+    TABLE,
+    TABLE_STRIDE,
+    TARGETS,
+    TCP_POSE,
+    TORQUE_HIGH,
+    TORQUE_LOW,
+    TORQUE_OUT,
+    WORKSPACE,
+)
 
 
 @intrinsic
@@ -208,7 +241,7 @@ def episode_step(mem: np.ndarray, J: np.ndarray, drift: np.ndarray, k: int, phas
     """The phases ``phase`` (``MEASURE``, ``CONTROL`` or ``BOTH``) of inner step ``k``.
 
     Args:
-        mem: the address vector (module notes), length :data:`ADDRESSES`.
+        mem: the address vector (module notes), length :data:`~amex.sim.step_layout.ADDRESSES`.
         J: TCP Jacobian (6, n), LOCAL_WORLD_ALIGNED (``pin.getFrameJacobian``); read by CONTROL.
         drift: TCP classical acceleration at q_ddot = 0 (6,); read by CONTROL.
         k: the step.
