@@ -5,16 +5,21 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 RUNS   ?= runs
 
-.PHONY: install run test test-slow test-kernels test-viewer test-live render-deps lint bench table figure-runs figures studies paper ablation ablation-table baselines clean
+.PHONY: install kernels run test test-slow test-kernels test-viewer test-live render-deps lint bench table figure-runs figures studies paper ablation ablation-table baselines clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[dev,bench]"
 	$(BIN)/python -m amex.app.warm  # every Numba kernel compiled once, into its cache
+	$(BIN)/python -m amex.app.build_kernels || echo "make install: runs use Numba's JIT"
 	touch $(STAMP)
 
 install: $(STAMP)
+
+## The episode loop's kernels compiled ahead of time again, after an edit of their sources.
+kernels: $(STAMP)
+	$(BIN)/python -m amex.app.build_kernels
 
 ## The main job: AMEX on Task 3 (moving goal + obstacle), 150 environments (~3 min).
 run: $(STAMP)

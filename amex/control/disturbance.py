@@ -14,12 +14,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 import pinocchio as pin
 
 from amex.control.osc import OperationalSpaceController
 from amex.control.state import RobotState
+from amex.core.compiled import kernel
 from amex.core.errors import ConfigError
 from amex.core.types import Command
 
@@ -77,7 +77,7 @@ class MomentumObserver:
 
     Called twice per inner step, :meth:`update` with the measured state, then :meth:`applied`
     with the torque sent to the arm. The arithmetic is one compiled call each
-    (:func:`_observer_update`, :func:`_compensate_and_clip`): in numpy its dozen small-array
+    (:mod:`amex.control.disturbance_kernels`): in numpy its dozen small-array
     operations cost ~30 us a step, the Pinocchio terms (M, C, g) ~4 us.
 
     Args:
@@ -109,7 +109,7 @@ class MomentumObserver:
         M = pin.crba(model, data, q)  # upper triangle read only (valid in every convention)
         C = pin.computeCoriolisMatrix(model, data, q, v)
         g = pin.computeGeneralizedGravity(model, data, q)
-        _observer_update(
+        kernel("amex.control.disturbance_kernels", "observer_update")(
             M, C, g, v, self._started, self.a, 1.0 / self.dt, self.bound,
             self.r, self._p_prev, self._flow_prev, self._beta,
         )  # fmt: skip
@@ -119,45 +119,6 @@ class MomentumObserver:
     def applied(self, tau: np.ndarray) -> None:
         """Record the torque applied during the coming step (after any clip) [N m]."""
         np.add(tau, self._beta, out=self._flow_prev)
-
-
-@numba.njit(cache=True)
-def _observer_update(M, C, g, v, started, a, inv_dt, bound, r, p_prev, flow_prev, beta) -> None:
-    """One step of the discrete observer, in place: ``r``, ``p_prev`` and ``beta``.
-
-    ``p = M v`` (M's upper triangle), ``d = (p - p_prev) / dt - flow_prev``,
-    ``r = clip(a r + (1 - a) d, -bound, bound)`` (skipped on the first step, which only records
-    ``p``), and ``beta = C^T v - g`` for the coming step.
-    """
-    n = v.shape[0]
-    for i in range(n):
-        p = 0.0
-        for j in range(n):
-            p += (M[i, j] if i <= j else M[j, i]) * v[j]
-        if started:
-            ri = a * r[i] + (1.0 - a) * ((p - p_prev[i]) * inv_dt - flow_prev[i])
-            if ri > bound[i]:
-                ri = bound[i]
-            elif ri < -bound[i]:
-                ri = -bound[i]
-            r[i] = ri
-        p_prev[i] = p
-        ctv = 0.0
-        for j in range(n):
-            ctv += C[j, i] * v[j]
-        beta[i] = ctv - g[i]
-
-
-@numba.njit(cache=True)
-def _compensate_and_clip(tau, r, lo, hi) -> None:
-    """``tau = clip(tau - r, lo, hi)`` in place (NaN stays NaN)."""
-    for i in range(tau.shape[0]):
-        x = tau[i] - r[i]
-        if x < lo[i]:
-            x = lo[i]
-        elif x > hi[i]:
-            x = hi[i]
-        tau[i] = x
 
 
 class ObserverController:
@@ -180,7 +141,8 @@ class ObserverController:
         r = self.observer.update(state.q, state.v)
         qdd = self.osc.accelerations(state, command)
         tau = pin.rnea(self.osc.robot.model, state.data, state.q, state.v, qdd)
-        _compensate_and_clip(tau, r, self._lo, self._hi)
+        compensate = kernel("amex.control.disturbance_kernels", "compensate_and_clip")
+        compensate(tau, r, self._lo, self._hi)
         self.observer.applied(tau)
         return tau
 

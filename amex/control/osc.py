@@ -27,10 +27,11 @@ import numpy as np
 import pinocchio as pin
 from scipy.linalg.lapack import dposv
 
-from amex.control import kernels
+from amex.control import packing
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, JointMap, PositionMap, ProxyMap, TaskTerms
+from amex.core.compiled import kernel
 from amex.core.errors import ConfigError, SolverError
 from amex.core.types import PD, Command
 from amex.robot import RobotModel
@@ -118,9 +119,9 @@ class KernelMemory(NamedTuple):
     Attributes:
         ws: the work space of :func:`~amex.control.kernels.osc_accelerations`: A, b, the
             solution x = q_ddot* (row n + 1), the Cholesky factor, shape (2n + 2, n).
-        targets: the held command, packed (:func:`~amex.control.kernels.pack_targets`).
+        targets: the held command, packed (:func:`~amex.control.packing.pack_targets`).
         col: the collision task's ``(phi, J)``, shape (1 + n,).
-        params: the constants with the damping task (:func:`~amex.control.kernels.pack_params`).
+        params: the constants with the damping task (:func:`~amex.control.packing.pack_params`).
         params_alone: the constants of a joint command tracked alone (``joint_only``).
         torque_low: lower torque limits, shape (n,) [N m].
         torque_high: upper torque limits, shape (n,) [N m].
@@ -183,20 +184,20 @@ class OperationalSpaceController:
         self._lo = -robot.torque_limit
         self._hi = robot.torque_limit
         n = robot.nv
-        self._ws = kernels.workspace(n)  # A, b, x = q_ddot*, L
+        self._ws = packing.workspace(n)  # A, b, x = q_ddot*, L
         self._x = self._ws[n + 1]
-        self._targets = np.zeros(kernels.targets_size(n))  # the held command, packed
+        self._targets = np.zeros(packing.targets_size(n))  # the held command, packed
         self._command: Command | None = None  # the command packed into _targets
         self._alone = self._col_on = False
         self._col = np.zeros(1 + n)  # the collision task's (phi, J), written per step
         self._no_col = np.zeros(1 + n)
         g, H = gains, self.regularizer()
         tasks = (g.pos, g.dir, g.joint, g.col)
-        self._params = kernels.pack_params(
+        self._params = packing.pack_params(
             *tasks, g.damping, g.drift, H + g.damping.weight, self.q_rest
         )
         no_damping = PD(0.0, 0.0, 0.0)  # the joint task alone (module notes)
-        self._params_alone = kernels.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
+        self._params_alone = packing.pack_params(*tasks, no_damping, g.drift, H, self.q_rest)
         self._active = self._params  # the packed constants of the held command
 
     def regularizer(self) -> np.ndarray:
@@ -243,7 +244,7 @@ class OperationalSpaceController:
 
     def _hold(self, command: Command) -> None:
         """Pack ``command`` for the kernels, once per new command object (:meth:`hold`)."""
-        kernels.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
+        packing.pack_targets(self._targets, command.y, command.yd, command.q, command.qd)
         self._alone = alone = command.q is not None and self.gains.joint_only  # (module notes)
         self._col_on = self.col_map is not None and not alone
         self._active = self._params_alone if alone else self._params
@@ -274,7 +275,8 @@ class OperationalSpaceController:
         n = self.robot.nv
         ws = np.empty((n + 1, n))
         self._command = None  # packed afresh: the command's arrays may have changed
-        kernels.normal_equations(ws, *self._kernel_args(state, command))
+        assemble = kernel("amex.control.kernels", "normal_equations")
+        assemble(ws, *self._kernel_args(state, command))
         return Objective(ws[:n].copy(), ws[n].copy())
 
     def build_objective_reference(self, state: RobotState, command: Command) -> Objective:
@@ -320,7 +322,7 @@ class OperationalSpaceController:
             col = self._col
             self.col_map.terms_into(state, col)  # type: ignore[union-attr]
         ws = self._ws
-        info = kernels.osc_accelerations(
+        info = kernel("amex.control.kernels", "osc_accelerations")(
             ws, state.J, state.v, state.q, state.H, state.acc_drift, self._targets, col,
             self._active,
         )
@@ -335,14 +337,14 @@ class OperationalSpaceController:
         """
         qdd = self._solve(state, command)
         tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
-        kernels.clip_inplace(tau, self._lo, self._hi)
+        kernel("amex.control.kernels", "clip_inplace")(tau, self._lo, self._hi)
         return tau
 
     def torque_into(self, state: RobotState, command: Command, out: np.ndarray) -> np.ndarray:
         """:meth:`torque` written into ``out`` (e.g. the simulator's applied forces); ``out``."""
         qdd = self._solve(state, command)
         tau = pin.rnea(self.robot.model, state.data, state.q, state.v, qdd)
-        kernels.clip_into(out, tau, self._lo, self._hi)
+        kernel("amex.control.kernels", "clip_into")(out, tau, self._lo, self._hi)
         return out
 
 

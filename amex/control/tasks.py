@@ -14,9 +14,9 @@ from typing import NamedTuple
 import numpy as np
 import pinocchio as pin
 
-from amex.control import collision_kernels
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
+from amex.core.compiled import kernel
 from amex.core.errors import ConfigError
 from amex.robot.geometry import cross, skew
 
@@ -117,7 +117,7 @@ class CollisionMap(TaskMap):
             return False
         if state.data is not self._data:
             self._data, self._J_world = state.data, state.data.J
-        collision_kernels.hinge_terms(
+        kernel("amex.control.collision_kernels", "hinge_terms")(
             out, c.table, self._J_world, c.support, c.pair_obstacle, c.centers, self.margin
         )
         return True
@@ -193,7 +193,7 @@ class ProxyMap(CollisionMap):
             out[0] = 0.0
             return False
         J_world = self._world_jacobians(state)
-        collision_kernels.proxy_terms(
+        kernel("amex.control.collision_kernels", "proxy_terms")(
             out, c.table, c.placements, J_world, c.support, c.pair_obstacle, c.pair_arm,
             c.centers, self._reach, self.margin,
         )  # fmt: skip

@@ -46,10 +46,13 @@ __all__ = [
     "EXPORTS",
     "SOURCES",
     "Export",
+    "digest",
     "fingerprint",
     "kernel",
     "library",
+    "library_dir",
     "library_path",
+    "module_name",
     "symbol",
 ]
 
@@ -89,11 +92,13 @@ EXPORTS: tuple[Export, ...] = (
 #: Every amex source file the exported kernels compile, relative to the package: their modules
 #: and what those import from amex (tests/core/test_compiled.py checks the list is whole).
 SOURCES: tuple[str, ...] = (
-    "core/compiled.py",
+    "core/errors.py",
     "core/types.py",
     "control/collision_kernels.py",
     "control/kernels.py",
+    "control/packing.py",
     "methods/amex_kernels.py",
+    "methods/amex_layout.py",
     "methods/clearance_kernels.py",
     "methods/rmpflow_kernels.py",
     "sim/step_kernel.py",
@@ -117,16 +122,21 @@ def _numba_version() -> str:
         return "unknown"
 
 
+def digest(package: Path) -> str:
+    """The fingerprint of the sources under ``package`` (an amex tree), 16 hex digits."""
+    h = hashlib.sha256()
+    h.update(f"{sys.implementation.cache_tag} numba {_numba_version()}\n".encode())
+    h.update(repr(EXPORTS).encode())
+    for name in SOURCES:
+        h.update(name.encode())
+        h.update((package / name).read_bytes())
+    return h.hexdigest()[:16]
+
+
 @cache
 def fingerprint() -> str:
-    """The hex digest naming the library built from today's sources (module notes), 16 digits."""
-    digest = hashlib.sha256()
-    digest.update(f"{sys.implementation.cache_tag} numba {_numba_version()}\n".encode())
-    digest.update(repr(EXPORTS).encode())
-    for name in SOURCES:
-        digest.update(name.encode())
-        digest.update((_PACKAGE / name).read_bytes())
-    return digest.hexdigest()[:16]
+    """The digest naming the library built from this package's sources (module notes)."""
+    return digest(_PACKAGE)
 
 
 def library_dir() -> Path:
@@ -135,8 +145,8 @@ def library_dir() -> Path:
 
 
 def module_name() -> str:
-    """The library's module name (its ``PyInit_`` symbol): ``amex_kernels_<fingerprint>``."""
-    return f"amex_kernels_{fingerprint()}"
+    """The library's module name (its ``PyInit_`` symbol): ``amex_aot_<fingerprint>``."""
+    return f"amex_aot_{fingerprint()}"
 
 
 def library_path() -> Path:
@@ -161,6 +171,7 @@ def library() -> ModuleType | None:
         loader.exec_module(module)
     except ImportError:  # a broken or foreign build: Numba compiles instead
         return None
+    sys.modules[module.__name__] = module  # its functions pickle and copy by name
     return module
 
 

@@ -29,8 +29,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from amex.core.compiled import kernel
 from amex.core.types import PD, Command, Observation, require_finite
-from amex.methods.amex_kernels import STATE_FIELDS, amex_update
+from amex.methods.amex_layout import STATE_FIELDS
 from amex.methods.base import Method, MethodConfig, invalid
 from amex.plan.spline import QuadraticBSpline, WarpedSpline, max_sample_error
 
@@ -183,7 +184,7 @@ class AMEX(Method):
         self._D = np.empty((2, m))  # g_ref - tau_ref(s_t), tau_ref(s_t) - tau_ref(s)
         # the execution's state, shared by the compiled update and the numpy oracle:
         # the plan's offset p and slope q and the previous y as rows of one array, the scalars
-        # (amex_kernels.STATE_FIELDS) in another
+        # (amex_layout.STATE_FIELDS) in another
         self._vectors = np.zeros((3, m))
         self.plan.p, self.plan.q, self._y_prev = self._vectors
         self._state = np.zeros(len(STATE_FIELDS))
@@ -206,8 +207,9 @@ class AMEX(Method):
                 *self.g_ref,
             ]
         )
-        self._knots = self.reference.knots
+        self._knots = np.ascontiguousarray(self.reference.knots, dtype=np.float64)
         self._m = m
+        self._kernel = kernel("amex.methods.amex_kernels", "amex_update")
         self.restart()
 
     # ----------------------------------------------------------------------------- numpy API
@@ -236,7 +238,7 @@ class AMEX(Method):
         g = np.ascontiguousarray(g, dtype=np.float64)
         m = self._m
         y_star, yd_star = np.empty(m), np.empty(m)
-        if amex_update(
+        if self._kernel(
             y, g, y_star, yd_star, self._state, self._vectors, self._C, self._knots, self._consts
         ):
             require_finite(y=y, g=g)  # raises, naming the bad input

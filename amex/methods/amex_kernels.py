@@ -4,8 +4,9 @@
 operation for operation: the same guards, the same order of floating-point operations, and the
 same BLAS calls where the oracle makes them (``np.dot`` of two vectors, the 3 x w spline-weight
 product), so that both give the same numbers. The state it advances lives in two arrays that
-:class:`~amex.methods.amex.AMEX` owns (:data:`STATE_FIELDS`; the plan's offset p, slope q and
-the previous y as rows of one (3, m) array), the constants in a third (:data:`CONSTANTS`).
+:class:`~amex.methods.amex.AMEX` owns (:data:`~amex.methods.amex_layout.STATE_FIELDS`; the
+plan's offset p, slope q and the previous y as rows of one (3, m) array), the constants in a
+third (:data:`~amex.methods.amex_layout.CONSTANTS`).
 Compiled without ``fastmath``.
 """
 
@@ -16,36 +17,7 @@ import math
 import numba
 import numpy as np
 
-#: The scalar state of an AMEX execution (:func:`amex_update`'s ``state``), by index.
-STATE_FIELDS = (
-    "s",  # the phase
-    "k",  # updates so far
-    "final",  # 1 once the final approach runs
-    "step_prev",  # ||y*_prev - y_prev||; 0: no command yet
-    "aimed",  # the phase the last command aimed at
-    "ref_remaining",  # ||g_ref - tau_ref(s_t,prev)||, Eq. 8's delta_g numerator
-    "delta_g",  # the last update's Eq. 8 factors
-    "delta_y",
-    "s_out",  # the last update's phase
-)
-#: The constants (:func:`amex_update`'s ``consts``), by index; g_ref follows them.
-CONSTANTS = (
-    "ds_ref",
-    "warmup_steps",
-    "rate_min",
-    "rate_max",
-    "eps_goal",
-    "eps_step",
-    "eps_tangent",
-    "end_margin",
-    "end_distance",
-    "approach_rate",
-    "peak_speed",
-    "dt",
-    "secant",
-    "n_basis",  # control points of tau_ref
-)
-N_CONSTANTS = len(CONSTANTS)
+from amex.methods.amex_layout import N_CONSTANTS
 
 
 @numba.njit(cache=True)
@@ -117,11 +89,11 @@ def amex_update(
         g: the goal, shape (m,).
         y_star: output y*, shape (m,).
         yd_star: output y_dot*, shape (m,).
-        state: the scalars of :data:`STATE_FIELDS`, advanced.
+        state: the scalars of :data:`~amex.methods.amex_layout.STATE_FIELDS`, advanced.
         vectors: rows p, q (the plan's offset) and y_prev, shape (3, m), advanced.
         C: tau_ref's control points, zero-padded for the weight window, shape (N + pad, m).
         knots: tau_ref's knot vector.
-        consts: :data:`CONSTANTS`, then g_ref (m).
+        consts: :data:`~amex.methods.amex_layout.CONSTANTS`, then g_ref (m).
 
     Returns:
         0; 1 or 2 if y or g holds a NaN or an infinity (nothing changed).

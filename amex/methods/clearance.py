@@ -38,8 +38,8 @@ import pinocchio as pin
 
 from amex.control.collision import CollisionModel
 from amex.control.state import RobotState
+from amex.core.compiled import kernel
 from amex.core.types import require_finite
-from amex.methods.clearance_kernels import pair_terms
 from amex.robot import RobotModel
 
 _LWA = pin.LOCAL_WORLD_ALIGNED
@@ -179,9 +179,10 @@ class ArmSensor:
         shapes = np.array([p.shape for p in found], dtype=np.int64)
         offset, axis, half = self._shape_axes
         gradient, rate, accel = np.empty((k, n)), np.empty(k), np.zeros(k)
-        pair_terms(rows, rotation, origin, jacobian, v_local, a_local, normal, point,
-                   centers[obstacle], velocity[obstacle], offset[shapes], axis[shapes],
-                   half[shapes], drift, gradient, rate, accel)  # fmt: skip
+        terms = kernel("amex.methods.clearance_kernels", "pair_terms")
+        terms(rows, rotation, origin, jacobian, v_local, a_local, normal, point,
+              centers[obstacle], velocity[obstacle], offset[shapes], axis[shapes],
+              half[shapes], drift, gradient, rate, accel)  # fmt: skip
         return ArmSnapshot(state, PairTerms(distance, gradient, rate, accel, obstacle))
 
     @property

@@ -23,12 +23,13 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from amex.core.compiled import kernel
 from amex.core.errors import ConfigError
 from amex.core.lazy import Lazy, LazyDict
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
-from amex.plan.knots import midpoint_target, resample_knots, whole_knot_rows
+from amex.plan.knots import resample_knots, whole_knot_rows
 from amex.plan.weights import CollisionWeights
 
 _new = tuple.__new__  # a NamedTuple made without its Python-level __new__ (the same tuple)
@@ -347,7 +348,8 @@ class CR(Method):
             return JointTarget(q[1], (q[2] - q[0]) / self.dt)
         n = knots.shape[1]
         q_mid, qd = np.empty(n), np.empty(n)
-        midpoint_target(knots, stride, self.dt, q_mid, qd)  # the two lines above, compiled
+        blend = kernel("amex.plan.knots_kernels", "midpoint_target")
+        blend(knots, stride, self.dt, q_mid, qd)  # the two lines above, compiled
         return _new(JointTarget, (q_mid, qd))
 
     # ----------------------------------------------------------------------------- Method

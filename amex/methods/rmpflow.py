@@ -30,9 +30,9 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
+from amex.core.compiled import kernel
 from amex.core.scaling import scaled
 from amex.core.types import Command, Observation, require_finite
-from amex.methods import rmpflow_kernels as kernels
 from amex.methods import rmpflow_leaves as leaves
 from amex.methods.base import Method, MethodConfig, invalid
 from amex.methods.clearance import ArmSensor, ArmSnapshot
@@ -236,10 +236,11 @@ class RMPflow(Method):
         state, pairs = snap.state, snap.pairs
         n = len(state.q)
         A, b, qdd = np.empty((n, n)), np.empty(n), np.empty(n)
-        ok = kernels.resolve(state.J, state.y, state.acc_drift, state.q, state.v,
-                             np.asarray(goal, dtype=float), self.q_lo, self.q_hi, self.q_rest,
-                             pairs.distance, pairs.gradient, pairs.rate, pairs.drift,
-                             *self._params, A, b, qdd)  # type: ignore[call-arg]  # fmt: skip
+        resolve = kernel("amex.methods.rmpflow_kernels", "resolve")
+        ok = resolve(state.J, state.y, state.acc_drift, state.q, state.v,
+                     np.asarray(goal, dtype=float), self.q_lo, self.q_hi, self.q_rest,
+                     pairs.distance, pairs.gradient, pairs.rate, pairs.drift,
+                     *self._params, A, b, qdd)  # fmt: skip
         if not ok:
             qdd = np.linalg.pinv(A, rcond=self.config.rcond, hermitian=True) @ b
         return Resolved(qdd, A, b)

@@ -30,7 +30,7 @@ import math
 import os
 from functools import cache
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from scipy.linalg import LinAlgError, solveh_banded
@@ -39,16 +39,12 @@ from scipy.linalg.lapack import dpbsv
 from amex.core.durable import replace_durably
 from amex.core.errors import WriteError
 from amex.core.paths import cache_dir
-from amex.plan.optimizer import (
-    TrajectoryCosts,
-    TrajectoryProblem,
-    build_normal_equations,
-    solve_trajectory,
-    solve_trajectory_newton,
-)
 from amex.plan.reference import PlanConfig, ReferencePlan
 from amex.robot import RobotModel
 from amex.robot.geometry import joint_metric
+
+if TYPE_CHECKING:  # the optimizer's compiled kernels load with it, only where a plan is solved
+    from amex.plan.optimizer import TrajectoryCosts, TrajectoryProblem
 
 PLAN_FORMAT = 2  # 2: the file carries its key, specification and goal; the kernel is in the key
 #: How far one more Gauss-Newton step may move a usable plan's end [m] (TCP) and [-] (z-axis)
@@ -138,6 +134,8 @@ def plan_key(robot: RobotModel, config: PlanConfig, goal_pos, goal_axis) -> str:
 
 def reference_costs(robot: RobotModel, config: PlanConfig) -> TrajectoryCosts:
     """The reference problem's cost terms (ConfigError for a setting they cannot take)."""
+    from amex.plan.problem import TrajectoryCosts
+
     metric = joint_metric(config.metric, robot.nv)
     return TrajectoryCosts.from_weights(config, metric, config.final_velocity_space)
 
@@ -146,6 +144,8 @@ def reference_problem(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> TrajectoryProblem:
     """The reference problem: no obstacles, start at rest in ``robot.q0`` (pure)."""
+    from amex.plan.problem import TrajectoryProblem
+
     return TrajectoryProblem(
         q_start=robot.q0.copy(),
         v_start=np.zeros(robot.nv),
@@ -163,6 +163,8 @@ def solve_reference(
     robot: RobotModel, config: PlanConfig, goal_pos: np.ndarray, goal_axis: np.ndarray
 ) -> ReferencePlan:
     """Solve the reference problem (:func:`reference_problem`) from scratch."""
+    from amex.plan.optimizer import solve_trajectory, solve_trajectory_newton
+
     problem = reference_problem(robot, config, goal_pos, goal_axis)
     if config.solver == "newton":
         solution = solve_trajectory_newton(robot, problem, max_iterations=config.max_iterations)
@@ -194,6 +196,8 @@ def end_step(
     is small (measured <= 4e-5 m, also for short plans and weak final weights that end cm from
     the goal); for a plan of a goal moved by d it is about d.
     """
+    from amex.plan.optimizer import build_normal_equations
+
     equations = build_normal_equations(
         robot, reference_problem(robot, config, goal_pos, goal_axis), q
     )

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 
+from amex.core.compiled import kernel
 from amex.core.errors import ConfigError
 
 
@@ -13,53 +13,16 @@ def resample_knots(knots: np.ndarray, offset: float, stride: float, count: int) 
 
     Indices are clamped to ``[0, len(knots) - 1]`` (the last knot repeats past the end); indices
     within 1e-9 of an integer take that row exactly (the usual case: a shift by whole knots).
-    Blends are one compiled loop (CR's every target), bit for bit :func:`resample_knots_numpy`.
+    Blends are one compiled loop (:mod:`amex.plan.knots_kernels`; CR's every target), bit for
+    bit :func:`resample_knots_numpy`.
     """
     index = whole_knots(len(knots), offset, stride, count)
     if index is not None:  # whole knots: no blending
         return knots[index]
     knots = np.asarray(knots, dtype=float)
     out = np.empty((count, knots.shape[1]))
-    _blend_rows(knots, float(offset), float(stride), out)
+    kernel("amex.plan.knots_kernels", "blend_rows")(knots, float(offset), float(stride), out)
     return out
-
-
-@numba.njit(cache=True)
-def _blend_rows(knots: np.ndarray, offset: float, stride: float, out: np.ndarray) -> None:
-    """:func:`resample_knots_numpy`'s blend, row ``k`` of ``out`` at index ``offset + k stride``."""
-    last = knots.shape[0] - 1
-    for k in range(out.shape[0]):
-        u = offset + stride * float(k)
-        if u == u:  # numpy's clip: NaN stays, max then min, -0.0 -> 0.0
-            u = u if u > 0.0 else 0.0
-            u = u if u < float(last) else float(last)
-        nearest = np.rint(u)
-        if abs(u - nearest) <= 1e-9:
-            u = nearest
-        if last == 0:
-            out[k] = knots[0]
-            continue
-        i = min(int(np.floor(u)), max(last - 1, 0))
-        a = u - float(i)
-        for j in range(knots.shape[1]):
-            out[k, j] = (1.0 - a) * knots[i, j] + a * knots[i + 1, j]
-
-
-@numba.njit(cache=True)
-def midpoint_target(
-    knots: np.ndarray, stride: float, dt: float, q_mid: np.ndarray, qd: np.ndarray
-) -> None:
-    """CR's joint target from its knots, one compiled call: ``q_mid`` and ``qd``, shapes (n,).
-
-    Rows at indices ``0, stride, 2 stride`` blended as :func:`resample_knots` blends them
-    (``stride`` not within 1e-9 of an integer, ``len(knots) >= 2``): ``q_mid`` the middle row,
-    ``qd = (q[2] - q[0]) / dt``, the numpy expression of ``CR.target``, bit for bit.
-    """
-    rows = np.empty((3, knots.shape[1]))
-    _blend_rows(knots, 0.0, stride, rows)
-    for j in range(knots.shape[1]):
-        q_mid[j] = rows[1, j]
-        qd[j] = (rows[2, j] - rows[0, j]) / dt
 
 
 def resample_knots_numpy(knots: np.ndarray, offset: float, stride: float, count: int) -> np.ndarray:

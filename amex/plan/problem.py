@@ -11,9 +11,9 @@ import math
 from dataclasses import dataclass, field, fields
 from typing import Any, NamedTuple
 
-import numba
 import numpy as np
 
+from amex.core.compiled import kernel
 from amex.core.errors import ConfigError, SolverError
 from amex.plan.weights import CollisionWeights, CostWeights
 
@@ -149,7 +149,7 @@ class TrajectoryProblem:
             for name, shape, value in zip(_ARRAYS, shapes, (q, v, g, a, o, r), strict=True):
                 if value.shape != shape:
                     raise SolverError(f"trajectory problem: {name} has shape {value.shape}", self)
-        if not _all_finite(q, v, g, a, o, r):  # one compiled check
+        if not kernel("amex.plan.problem_kernels", "all_finite")(q, v, g, a, o, r):  # compiled
             for name, value in zip(_ARRAYS, (q, v, g, a, o, r), strict=True):
                 if not np.isfinite(value).all():
                     raise SolverError(f"trajectory problem: non-finite {name}={value}", self)
@@ -203,22 +203,6 @@ class TrajectoryProblem:
 
 #: The array fields of :class:`TrajectoryProblem`, in the order of their shape checks.
 _ARRAYS = ("q_start", "v_start", "goal_pos", "goal_axis", "obstacles", "obstacle_radii")
-
-
-@numba.njit(cache=True)
-def _finite(a: np.ndarray) -> bool:
-    for value in a.ravel():  # noqa: SIM110 (a loop Numba compiles)
-        if not np.isfinite(value):
-            return False
-    return True
-
-
-@numba.njit(cache=True)
-def _all_finite(
-    q: np.ndarray, v: np.ndarray, g: np.ndarray, a: np.ndarray, o: np.ndarray, r: np.ndarray
-) -> bool:
-    """Whether every entry of the six arrays is finite."""
-    return _finite(q) and _finite(v) and _finite(g) and _finite(a) and _finite(o) and _finite(r)
 
 
 class TrajectorySolution(NamedTuple):

@@ -14,9 +14,9 @@ import math
 import mujoco
 import numpy as np
 
-from amex.control import kernels
 from amex.control.osc import Command
 from amex.control.state import RobotState
+from amex.core.compiled import kernel
 from amex.core.errors import AmexError, SimulationError, WriteError
 from amex.sim.episode_setup import Episode, Probe, check_simulation, method_step, observe
 from amex.sim.loop import Recorder, StepRecord
@@ -116,7 +116,7 @@ def run_reference(
             if kinematic:
                 qacc = osc.accelerations(state, command)
                 tau = no_torque
-                kernels.euler_inplace(qpos, qvel, qacc, dt)
+                kernel("amex.control.kernels", "euler_inplace")(qpos, qvel, qacc, dt)
                 mjd.time += dt
                 if detect_contacts:
                     mujoco.mj_kinematics(mjm, mjd)

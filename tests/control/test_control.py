@@ -4,8 +4,9 @@ import pinocchio as pin
 import pytest
 
 from amex.control.collision import CollisionModel
-from amex.control.kernels import clip_inplace, pack_params, params_dtype
+from amex.control.kernels import clip_inplace
 from amex.control.osc import PD, Command, OperationalSpaceController, OSCGains, solve_objective
+from amex.control.packing import pack_params, params_dtype
 from amex.control.state import RobotState
 from amex.control.tasks import AxisMap, CollisionMap, PositionMap
 from amex.core.errors import SolverError

@@ -17,12 +17,12 @@ import pytest
 from amex.core.errors import SolverError
 from amex.plan import optimizer as opt
 from amex.plan.knots import (
-    midpoint_target,
     resample_knots,
     resample_knots_numpy,
     whole_knot_rows,
     whole_knots,
 )
+from amex.plan.knots_kernels import midpoint_target
 from amex.plan.optimizer.assembly import CompiledAssembly
 from amex.plan.optimizer.assembly_kernels import segment_sum, start_residuals, take_step
 from amex.plan.optimizer.numpy_assembly import NumpyAssembly, damped_band_numpy

@@ -38,7 +38,7 @@ from amex.plan.kinematics_kernels import (
     near_pairs,
     pair_gradients,
 )
-from amex.plan.knots import midpoint_target
+from amex.plan.knots_kernels import midpoint_target
 from amex.plan.optimizer.assembly_kernels import start_residuals, take_step, wake_pairs
 from amex.plan.optimizer.blas import ddot
 from amex.plan.optimizer.iteration_kernels import damped_solve, final_cost, final_products
@@ -191,8 +191,8 @@ def levenberg_loop(
     q_mid, qd)``: ``outcome`` 0 (solved) or an error whose ``value`` is the non-finite cost or
     LAPACK's ``info``; ``q`` the solution with the start as row 0; the frames and distances at
     its free knots (empty without collision term); CR's joint target from ``q``
-    (:func:`~amex.plan.knots.midpoint_target` at ``target = (stride, dt)``; empty for a stride
-    of 0).
+    (:func:`~amex.plan.knots_kernels.midpoint_target` at ``target = (stride, dt)``; empty for a
+    stride of 0).
     """
     dt, s_acc, scale, metric, s_acc2, w, margin, s_col = fixed
     q_start, v_start, obstacles, collides = problem[0], problem[1], problem[4], problem[6]

@@ -142,7 +142,7 @@ class ReplanLoop:
         settings: ``(max_iterations, tolerance, damping)`` (lambda starts at
             :data:`~.compiled_loop.INITIAL_DAMPING`, as in ``solve_trajectory``).
         target: ``(stride, dt)`` of the joint target computed from each solution
-            (:func:`~amex.plan.knots.midpoint_target`; stride 0: none).
+            (:func:`~amex.plan.knots_kernels.midpoint_target`; stride 0: none).
     """
 
     def __init__(
