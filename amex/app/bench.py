@@ -237,12 +237,18 @@ def _print_startup(quick: bool) -> None:
     floor = statistics.median(times.floor)
     numba_floor = statistics.median(times.numba_floor)
     print(f"start-up of amex-run (whole process, user + system CPU, one {STEPS}-step episode;")
-    print(" floor: the interpreter importing the libraries a run calls; Numba floor: and Numba's")
-    print(" CPU target initialised, as the first call of any compiled function does)")
-    for label, values in (("warm caches", times.warm), ("cold Numba cache", times.cold)):
+    print(" floor: the interpreter importing the libraries a run calls; Numba floor: and Numba")
+    print(" imported and its CPU target initialised, as a run of Numba-compiled kernels needs;")
+    print(" Numba's JIT: the kernels built ahead of time off, AMEX_AOT=0)")
+    rows = (
+        ("warm caches", times.warm),
+        ("cold Numba cache", times.cold),
+        ("warm, Numba's JIT", times.jit),
+    )
+    for label, values in rows:
         median = statistics.median(values)
         print(
-            f"  {label:<17} median of {len(values)}: {median:6.3f} s  (min {min(values):.3f}, "
+            f"  {label:<18} median of {len(values)}: {median:6.3f} s  (min {min(values):.3f}, "
             f"max {max(values):.3f})  floor {floor:6.3f} s  ratio {_ratio(median, floor)}, "
             f"Numba floor {numba_floor:6.3f} s  ratio {_ratio(median, numba_floor)}"
         )

@@ -2,24 +2,28 @@
 
 Every SLURM array task and every joblib worker pays it, so it is measured as a whole process:
 ``amex-run`` with one environment of Task 0 that stops after ``STEPS`` inner steps, its user +
-system CPU time read from ``getrusage(RUSAGE_CHILDREN)``. ``warm``: the Numba cache of this
-install; ``cold``: an empty ``NUMBA_CACHE_DIR``, i.e. every kernel a run calls compiled again, as
-on a fresh install.
+system CPU time read from ``getrusage(RUSAGE_CHILDREN)``. ``warm``: the caches of this install
+(the kernels built ahead of time, :mod:`amex.core.compiled`, and Numba's cache); ``cold``: an empty
+``NUMBA_CACHE_DIR`` as on a machine of a cluster that shares the install but not its Numba cache
+(every kernel outside the ahead-of-time library compiled again); ``jit``: warm, with the library
+off (``AMEX_AOT=0``), the run's kernels from Numba's cache, as before it existed.
 
 Two floors, each the same interpreter with the environment ``amex-run`` sets (one BLAS thread,
 no on-screen OpenGL), then exiting:
 
-- ``floor``: importing the libraries a run calls (MuJoCo, Pinocchio, coal, Numba, SciPy's LAPACK,
+- ``floor``: importing the libraries a run calls (MuJoCo, Pinocchio, coal, SciPy's LAPACK,
   Hydra);
-- ``numba_floor``: the same, and Numba's CPU target initialised, which the first call of any
-  compiled function pays, cached or not (its registries of typing and lowering, and its runtime
-  compiled by LLVM).
+- ``numba_floor``: the same, Numba imported and its CPU target initialised, which the first call
+  of any Numba-compiled function pays, cached or not (its registries of typing and lowering, and
+  its runtime compiled by LLVM): the floor of a run whose kernels are not all ahead of time (CR,
+  MPPI, ``log=full``).
 
 :func:`startup_phases` splits a warm start-up into its phases (:data:`PHASES`), each timed in
-the process itself (``time.process_time``) around the functions ``amex-run`` calls: the two
-floors first, then amex's imports, Hydra's ConfigStore, Hydra's composition, amex's checks of it,
-Hydra's job around amex's, and the episode. What the process spends before its first line and
-after its last (the interpreter's start and exit) is the whole process's CPU minus their sum.
+the process itself (``time.process_time``) around the functions ``amex-run`` calls: the
+libraries and the kernels (loaded, or Numba's target) first, then amex's imports, Hydra's
+ConfigStore, Hydra's composition, amex's checks of it, Hydra's job around amex's, and the
+episode. What the process spends before its first line and after its last (the interpreter's
+start and exit) is the whole process's CPU minus their sum.
 """
 
 from __future__ import annotations
@@ -36,8 +40,9 @@ from typing import NamedTuple
 
 #: Inner steps of the measured episode (``max_time`` = STEPS ms): the run does its whole set-up.
 STEPS = 10
-#: What a run needs imported, whatever amex does (the floor).
-FLOOR_IMPORTS = "numpy, mujoco, pinocchio, coal, numba, scipy.linalg.lapack, hydra, omegaconf"
+#: What a run needs imported, whatever amex does (the floor); Numba only where its kernels are
+#: not built ahead of time (:mod:`amex.core.compiled`).
+FLOOR_IMPORTS = "numpy, mujoco, pinocchio, coal, scipy.linalg.lapack, hydra, omegaconf"
 
 
 #: Numba's CPU target initialised, as the first call of a compiled function does.
@@ -54,7 +59,7 @@ RUN_ENVIRONMENT = {
 #: The phases of a warm start-up (:func:`startup_phases`), in the order they happen.
 PHASES = (
     ("libraries", "importing the libraries (the floor)"),
-    ("numba", "Numba's CPU target initialised"),
+    ("numba", "the kernels: ahead of time loaded, or Numba imported and its target"),
     ("amex_imports", "amex's modules"),
     ("schemas", "the schemas stored in Hydra's ConfigStore"),
     ("composition", "Hydra composing the command line's config"),
@@ -77,7 +82,10 @@ spent = {{"boot": start}}
 import {FLOOR_IMPORTS}
 spent["libraries"] = cpu() - start
 start = cpu()
-{NUMBA_INIT}
+from amex.core import compiled
+if compiled.library() is None:  # Numba's JIT: imported and its target initialised
+    import numba
+    {NUMBA_INIT}
 spent["numba"] = cpu() - start
 start = cpu()
 import amex.app.cli, amex.app.checks, amex.app.compose, amex.app.job, amex.app.launch
@@ -115,6 +123,7 @@ class StartupTimes(NamedTuple):
 
     warm: list[float]
     cold: list[float]
+    jit: list[float]
     floor: list[float]
     numba_floor: list[float]
 
@@ -161,14 +170,17 @@ def startup_times(repeats: int = 5) -> StartupTimes:
     The first warm run is discarded (it fills the reference plan's and Numba's caches); amex's
     bytecode is written first (:func:`amex.app.warm.warm_bytecode`, as ``make install`` does).
     """
-    times = StartupTimes([], [], [], [])
+    times = StartupTimes([], [], [], [], [])
     with _warmed() as (env, tmp):
         floor_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; gc.freeze()"]
-        numba_cmd = [sys.executable, "-c", f"import gc, {FLOOR_IMPORTS}; {NUMBA_INIT}; gc.freeze()"]
+        with_numba = f"import gc, numba, {FLOOR_IMPORTS}; {NUMBA_INIT}; gc.freeze()"
+        numba_cmd = [sys.executable, "-c", with_numba]
+        jit = dict(env, AMEX_AOT="0")
         for k in range(repeats):
             times.warm.append(_child_cpu(_run_command(Path(tmp) / f"warm{k}"), env, tmp))
             fresh = dict(env, NUMBA_CACHE_DIR=str(Path(tmp) / f"numba{k}"))
             times.cold.append(_child_cpu(_run_command(Path(tmp) / f"cold{k}"), fresh, tmp))
+            times.jit.append(_child_cpu(_run_command(Path(tmp) / f"jit{k}"), jit, tmp))
             times.floor.append(_child_cpu(floor_cmd, env, tmp))
             times.numba_floor.append(_child_cpu(numba_cmd, env, tmp))
     return times

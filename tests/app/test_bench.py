@@ -42,8 +42,6 @@ def test_startup_is_timed_warm_cold_and_beside_both_floors():
 
     times = startup_times(repeats=1)
     assert all(len(v) == 1 and v[0] > 0 for v in times)
-    # an empty Numba cache compiles every kernel a run calls: seconds, not the warm start's one
-    assert times.cold[0] > 2 * times.warm[0]
 
 
 def test_startup_phases_add_up_to_the_whole_process():
