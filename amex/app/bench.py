@@ -268,8 +268,8 @@ def _print_startup_phases(repeats: int) -> None:
     below = median["libraries"] + median["numba"] + median["interpreter"] + hydra
     print(
         f"  whole process {median['total']:.3f} s; of it Hydra's ConfigStore, composition and "
-        f"job {hydra:.3f} s, which with the Numba floor and the interpreter make {below:.3f} s "
-        "before any of amex's own work"
+        f"job {hydra:.3f} s, which with the libraries, the kernels and the interpreter make "
+        f"{below:.3f} s before any of amex's own work"
     )
 
 
