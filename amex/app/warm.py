@@ -4,12 +4,14 @@ The compiled kernels (the OSC, the collision tasks, AMEX's update, the planner's
 kinematics, the reactive methods', MPPI's rollouts) are cached by Numba (``cache=True``): in the
 package's ``__pycache__`` or under ``NUMBA_CACHE_DIR``, one entry per kernel signature and CPU
 model. A process that finds no entry compiles the kernels it calls (~4-5 s of CPU for a run of
-AMEX on Task 3, ``make bench``, start-up). ``python -m amex.app.warm`` (run by ``make install``)
-fills the cache by running a few steps of every registered method on an obstacle task, with our
-collision cost and the authors', dynamic and kinematic, and the disturbance observer, and once
-with an MCAP log (the log's encoders are compiled too: ~7 s of CPU at the first ``log=full``
-run otherwise), so that the first run of every method is already warm. On a cluster, run it
-once per CPU model with ``NUMBA_CACHE_DIR`` on the shared file system (docs/clusters.md).
+AMEX on Task 3 with the ahead-of-time library off, ``make bench``, start-up; with it, only the
+kernels outside it: CR's, MPPI's, the planner's, the observer's, the log's).
+``python -m amex.app.warm`` (run by ``make install``) fills the cache by running a few steps of
+every registered method on an obstacle task, with our collision cost and the authors', dynamic
+and kinematic, and the disturbance observer, and once with an MCAP log (the log's encoders are
+compiled too: ~7 s of CPU at the first ``log=full`` run otherwise), so that the first run of
+every method is already warm. On a cluster, run it once per CPU model with ``NUMBA_CACHE_DIR``
+on the shared file system (docs/clusters.md).
 
 It also writes the bytecode of amex's modules (:func:`warm_bytecode`), as ``pip`` does for a
 wheel but not for an editable install: without it, a process started with
