@@ -75,6 +75,8 @@ def warm_bytecode() -> bool:
 
 def main() -> None:
     """``python -m amex.app.warm [METHOD ...]``: fill Numba's cache (module notes)."""
+    # the exported kernels too, as Numba compiles them (AMEX_AOT=0 runs, and the library's build)
+    os.environ["AMEX_AOT"] = "0"
     warm_bytecode()
     cpu = warm(sys.argv[1:] or None)
     sys.stdout.write(f"Numba cache warm ({cpu:.1f} s of CPU)\n")
