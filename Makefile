@@ -15,6 +15,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m amex.app.build_kernels || echo "make install: runs use Numba's JIT"
 	touch $(STAMP)
 
+# The ahead-of-time kernels built again where their sources changed since (a no-op otherwise).
+FRESH_KERNELS = $(BIN)/python -m amex.app.build_kernels --if-stale || true
+
 install: $(STAMP)
 
 ## The episode loop's kernels compiled ahead of time again, after an edit of their sources.
@@ -23,10 +26,12 @@ kernels: $(STAMP)
 
 ## The main job: AMEX on Task 3 (moving goal + obstacle), 150 environments (~3 min).
 run: $(STAMP)
+	@$(FRESH_KERNELS)
 	$(BIN)/amex-run task=3 method=amex
 
 ## Fast tests (the default suite, < 5 min on 2 cores).
 test: $(STAMP)
+	@$(FRESH_KERNELS)
 	$(BIN)/python -m pytest -q
 
 ## The tests of logs, the episode store, the plan cache and CR's compiled kinematics again under
@@ -83,6 +88,7 @@ lint: $(STAMP)
 
 ## Medians of the inner step, an episode, the reference plan and every method's outer step.
 bench: $(STAMP)
+	@$(FRESH_KERNELS)
 	$(BIN)/python -m amex.app.bench
 	$(BIN)/python -m analysis.bench_amex
 	$(BIN)/python -m analysis.bench_dmp
@@ -131,6 +137,7 @@ EXPERIMENT ?=
 SHARDS ?=
 PAPER_DIR ?= runs/paper$(if $(EXPERIMENT),_$(EXPERIMENT))
 paper: $(STAMP)
+	@$(FRESH_KERNELS)
 	$(BIN)/amex-run -m $(if $(EXPERIMENT),experiment=$(EXPERIMENT)) task=1,2,3,4 method=amex,dmp,cr $(if $(SHARDS),shards=$(SHARDS)) hydra.sweep.dir=$(PAPER_DIR)
 	$(BIN)/python -m analysis.table $(PAPER_DIR)
 

@@ -79,8 +79,21 @@ def build(output_dir: Path | None = None) -> Path:
     return built
 
 
-def main() -> int:
-    """``python -m amex.app.build_kernels``: build the library (module notes); 1 if it failed."""
+def main(argv: list[str] | None = None) -> int:
+    """``python -m amex.app.build_kernels``: build the library (module notes); 1 if it failed.
+
+    ``--if-stale``: only where the library of today's sources is missing (what ``make run``,
+    ``make test``, ``make paper`` and ``make bench`` do first, so an edited kernel is built).
+    """
+    from amex.app.argparsing import OneLineParser
+
+    parser = OneLineParser(prog="build_kernels", description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--if-stale", action="store_true", help="build only if today's library is missing"
+    )
+    args = parser.parse_args(argv)
+    if args.if_stale and compiled.library_path().is_file():
+        return 0
     start = time.process_time()
     try:
         path = build()

@@ -195,3 +195,20 @@ def test_a_build_replaces_the_libraries_of_other_sources(tmp_path):
     built = build(tmp_path)
     assert built.name == compiled.library_path().name and built.is_file()
     assert sorted(p.name for p in tmp_path.iterdir()) == [built.name]
+
+
+def test_if_stale_builds_nothing_where_the_library_of_these_sources_is(
+    tmp_path, monkeypatch, capsys
+):
+    from amex.app.build_kernels import main
+
+    monkeypatch.setenv("AMEX_AOT_DIR", str(tmp_path))
+    present = tmp_path / compiled.library_path().name
+    present.write_bytes(b"stands in for the built library")
+    assert main(["--if-stale"]) == 0
+    assert present.read_bytes() == b"stands in for the built library"  # not rebuilt
+    assert capsys.readouterr().out == ""
+    with pytest.raises(SystemExit) as e:
+        main(["--if-stale", "--fast"])
+    assert e.value.code == 2
+    assert "--fast" in capsys.readouterr().err
