@@ -8,9 +8,15 @@ therefore also built ahead of time, from the same source, into one C extension
 (:mod:`amex.app.build_kernels`, run by ``make install``): :data:`EXPORTS`, the episode step
 (:mod:`amex.sim.step_kernel`), AMEX's update (Eq. 7-9, :mod:`amex.methods.amex_kernels`), the
 clearance terms of the CBF methods and RMPflow's resolve. A run that calls nothing else (AMEX,
-the DMPs, tracking, the CBF methods, RMPflow, without ``log=full``) never imports Numba; CR's
-Gauss-Newton loop, MPPI's rollouts, the disturbance observer and the log's encoders still load
-their kernels through Numba, on first use.
+the DMPs, tracking, the CBF methods, RMPflow, without ``log=full``, its plan cached) never
+imports Numba; CR's Gauss-Newton loop, MPPI's rollouts, the planner, the disturbance observer
+and the log's encoders still load their kernels through Numba, on first use.
+
+A caller must pass exactly the types of :attr:`Export.args`: the library's wrappers convert
+their arguments without checking them (an array of another dtype or layout is read as if it were
+the declared one), where Numba's dispatcher would compile another version.
+``tests/core/test_compiled.py`` checks that the runs of every exported kernel compile one
+signature each under Numba, the exported one.
 
 :func:`kernel` hands out a kernel: the ahead-of-time function where the library was built from
 exactly these sources, else the Numba dispatcher (importing its module). The library's name
