@@ -2,12 +2,16 @@
 
 :func:`log_overhead` runs environments of a task with a method exactly as a run builds them
 (:func:`amex.experiment.runner.setup`, then :func:`~amex.experiment.runner.run_setup`), each one
-twice in a row, without and with a log file (a temporary directory), alternating so that both see
-the same load of the machine. Each episode is timed whole, set-up of the method and the logger
+without and with a log file (a temporary directory), in turn, ``rounds`` times (the medians of
+its rounds: ``--rounds``, 3 by default), so that both see the same load of the machine. Each episode is timed whole, set-up of the method and the logger
 and the log's finish included, in thread CPU time (``time.thread_time_ns``) and wall time. The
 first environment is run once before, unlogged and logged, so that caches (reference plan, Numba,
-the URDF's joints) are warm. The log's cost includes the method's ``internals()``, which the
-episode loop calls only for a recorder.
+the URDF's joints) are warm; then the heap is frozen, as ``amex-run`` freezes it once its
+episodes are set up (:func:`amex.app.heap.settle`). Without that, the cyclic collector's full
+collections, which the log's allocations trigger and an unlogged episode does not, walk the whole
+set-up: ~8 ms per logged episode of the DMP on Task 1 (2026-12-06), 7 points of its overhead that
+no run pays. The log's cost includes the method's ``internals()``, which the episode loop calls
+only for a recorder.
 
 Nothing here asserts a time. ``python -m amex.app.bench_log --tasks 1 2 3 4 --methods amex dmp cr``
 prints, per task and method, the median and p95 of the per-episode overhead ``logged / plain - 1``,
@@ -214,6 +218,7 @@ def log_overhead(
     envs: Sequence[int] = range(6),
     overrides: Sequence[str] = (),
     *,
+    rounds: int = 1,
     verbose: bool = True,
 ) -> LogOverhead:
     """Thread CPU and wall time of ``envs``, each run plain and then logged (module notes).
@@ -221,37 +226,50 @@ def log_overhead(
     Args:
         task: the task, 0-4.
         method: the method's registry key.
-        envs: the environments (each one is run twice).
+        envs: the environments.
         overrides: further Hydra overrides (e.g. ``max_time=1``).
+        rounds: how many times each environment is run each way (plain, logged, the SDK's
+            floor, replayed, in turn); its times are the medians of its rounds. The same
+            episode's thread CPU varies by up to ~20 % from one run to the next on a shared
+            machine (2026-12-06: 106-134 ms for the DMP's Task 1, bimodal), more than a
+            logger's changes: three rounds and more make the median steady.
         verbose: print one line per environment and the median overhead.
     """
     from amex.app.compose import load_config
+    from amex.app.heap import settle
     from amex.experiment.runner import prepare, run_setup, setup
 
+    if rounds < 1:
+        raise ValueError(f"invalid rounds={rounds!r}; valid: an integer >= 1")
     config = load_config([f"task={task}", f"method={method}", *overrides])
     run = setup(config, prepare(config))
-    rows: list[tuple[float, ...]] = []
+    rows: list[np.ndarray] = []
     with tempfile.TemporaryDirectory(prefix="amex-bench-log-") as tmp:
         first = next(iter(envs), 0)
         run_setup(run, first)  # warm-up, not counted
         run_setup(run, first, Path(tmp) / "warm.mcap")
+        settle()  # the heap as amex-run's episodes see it (amex.app.heap; module notes)
         for env in envs:
-            path = Path(tmp) / f"episode_{env:03d}.mcap"
-            plain = _timed(lambda env=env: run_setup(run, env))
-            logged = _timed(lambda env=env, path=path: run_setup(run, env, path))
-            again = path.with_suffix(".again.mcap")
-            floor = sdk_floor(path, again)
-            again.unlink()
-            replayed = _replayed(run, env, path, again)
-            path.unlink()
-            again.unlink()
-            rows.append((plain[0], logged[0], plain[1], logged[1], floor, replayed[0]))
+            samples = []
+            for _ in range(rounds):
+                path = Path(tmp) / f"episode_{env:03d}.mcap"
+                plain = _timed(lambda env=env: run_setup(run, env))
+                logged = _timed(lambda env=env, path=path: run_setup(run, env, path))
+                again = path.with_suffix(".again.mcap")
+                floor = sdk_floor(path, again)
+                again.unlink()
+                replayed = _replayed(run, env, path, again)
+                path.unlink()
+                again.unlink()
+                samples.append((plain[0], logged[0], plain[1], logged[1], floor, replayed[0]))
+            row = np.median(np.array(samples), axis=0)
+            rows.append(row)
             if verbose:
                 print(
-                    f"  env {env}: thread CPU plain {plain[0]:.3f} s, logged {logged[0]:.3f} s "
-                    f"(+{(logged[0] / plain[0] - 1) * 100:.0f} %); wall plain {plain[1]:.3f} s, "
-                    f"logged {logged[1]:.3f} s; the SDK alone {floor:.4f} s; replayed "
-                    f"{replayed[0]:.3f} s"
+                    f"  env {env}: thread CPU plain {row[0]:.3f} s, logged {row[1]:.3f} s "
+                    f"(+{(row[1] / row[0] - 1) * 100:.0f} %); wall plain {row[2]:.3f} s, "
+                    f"logged {row[3]:.3f} s; the SDK alone {row[4]:.4f} s; replayed "
+                    f"{row[5]:.3f} s" + (f" (medians of {rounds} rounds)" if rounds > 1 else "")
                 )
     times = np.array(rows).reshape(-1, 6)
     result = LogOverhead(*times.T)
@@ -279,16 +297,22 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tasks", type=int, nargs="*", choices=range(5), default=[3])
     parser.add_argument("--methods", nargs="*", default=["amex"])
     parser.add_argument("--episodes", type=int, default=6, help="environments per task")
+    parser.add_argument(
+        "--rounds", type=int, default=3, help="runs of each environment each way (medians)"
+    )
     parser.add_argument("--quiet", action="store_true", help="only the summary lines")
     parser.add_argument("overrides", nargs="*", help="Hydra overrides, e.g. max_time=1")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         parser.error(f"--episodes {args.episodes}: valid: an integer >= 1")
+    if args.rounds < 1:
+        parser.error(f"--rounds {args.rounds}: valid: an integer >= 1")
     lines = []
     for method in args.methods:
         for task in args.tasks:
+            envs = range(args.episodes)
             result = log_overhead(
-                task, method, range(args.episodes), args.overrides, verbose=not args.quiet
+                task, method, envs, args.overrides, rounds=args.rounds, verbose=not args.quiet
             )
             lines.append(summary(task, method, result))
     if args.quiet:

@@ -83,7 +83,7 @@ def task(cfg: Any) -> None:
     if quiet:  # no tqdm in sweep workers: its lock is a semaphore, which a killed worker leaks
         try:
             with job_guard(run_dir, multirun=True):
-                summary = run(config, run_dir)
+                summary = run(config, run_dir, ready=settle)
         except Interrupted as e:
             if not os.environ.get("SUBMITIT_EXECUTOR"):
                 raise  # a local worker: the launcher reports the stop
@@ -115,7 +115,7 @@ def task(cfg: Any) -> None:
                     f"running the other {episodes - kept}",
                     file=sys.stderr,
                 )
-            summary = run(config, run_dir, progress)
+            summary = run(config, run_dir, progress, ready=settle)
     if not quiet or os.environ.get("SUBMITIT_EXECUTOR"):  # a local sweep's launcher says it
         say(f"{label}: {run_line(summary)}")
     say(str(run_dir), sys.stdout)

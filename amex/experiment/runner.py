@@ -222,11 +222,15 @@ def run(
     config: RunConfig,
     run_dir: Path,
     progress: Callable[[int, EpisodeResult], None] | None = None,
+    ready: Callable[[], None] | None = None,
 ) -> dict:
     """Execute the run into ``run_dir``; return the summary (also written as ``summary.json``).
 
     Environments already in ``run_dir/episodes.csv`` under the same configuration hash are
     skipped (resume after a crash or Ctrl-C); ``progress`` is called for those too, first.
+    ``ready`` is called once, when the episodes are set up (the modules of the log imported
+    for ``log=full``) and before the first runs: ``amex-run`` freezes the heap there
+    (:func:`amex.app.heap.settle`), so that the episodes' collections do not walk the set-up.
 
     Raises:
         ConfigError: a bad configuration (before anything is written).
@@ -240,11 +244,14 @@ def run(
     except OSError as e:
         raise WriteError(run_dir, e.strerror or str(e)) from e
     with RunLock(run_dir):
-        return _run_locked(config, run_dir, progress)
+        return _run_locked(config, run_dir, progress, ready)
 
 
 def _run_locked(
-    config: RunConfig, run_dir: Path, progress: Callable[[int, EpisodeResult], None] | None
+    config: RunConfig,
+    run_dir: Path,
+    progress: Callable[[int, EpisodeResult], None] | None,
+    ready: Callable[[], None] | None,
 ) -> dict:
     started = time.perf_counter(), time.process_time()
     store = EpisodeStore.for_config(run_dir / EPISODES_CSV, config)
@@ -274,6 +281,10 @@ def _run_locked(
     )
     if todo:
         episodes = setup(config, prepare(config))
+        if config.log == "full":
+            import amex.log.writer  # noqa: F401  (set-up: imported before ``ready``)
+    if ready is not None:
+        ready()
     for env in todo:
         log_path = None
         if config.log == "full":
