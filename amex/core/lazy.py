@@ -8,6 +8,12 @@ is one: an outer step that nobody logs, or whose plan the logger skips, does not
 
 The thunk must capture what it needs at creation (a snapshot: CR's knots are a new array at
 every solve, never written in place), so a late read gives the value of the step it belongs to.
+
+A :class:`LazyRows` is a lazy array whose rows can also be computed alone: a reader that needs
+only some of them takes the raw value (``dict.get(d, key)``, which resolves nothing) and calls
+:meth:`LazyRows.take`. The log's scene draws at most 100 points of a plan of up to ~400 knots
+(:mod:`amex.log.scene`), and it does so in its batch, after the steps, where the kinematics run
+warm; every other reader gets the whole array, as before.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from typing import Any
 
-__all__ = ["Lazy", "LazyDict"]
+__all__ = ["Lazy", "LazyDict", "LazyRows"]
 
 
 class Lazy:
@@ -27,18 +33,42 @@ class Lazy:
         self.compute = compute
 
 
+class LazyRows(Lazy):
+    """A lazy ``(length, ...)`` array: ``rows(None)`` gives it whole, ``rows(index)`` some rows.
+
+    Args:
+        length: the number of rows of the whole array.
+        rows: computes the rows of an integer index array (in its order), or all for None;
+            ``rows(index)`` must equal ``rows(None)[index]``, bit for bit.
+    """
+
+    __slots__ = ("length", "rows")
+
+    def __init__(self, length: int, rows: Callable[[Any], Any]) -> None:
+        super().__init__(lambda: rows(None))
+        self.length = length
+        self.rows = rows
+
+    def take(self, index: Any) -> Any:
+        """The rows ``index`` (an integer array; None: all), computed now (class notes)."""
+        return self.rows(index)
+
+
+_LAZY = (Lazy, LazyRows)
+
+
 class LazyDict(dict):  # type: ignore[type-arg]
     """A ``dict`` computing its :class:`Lazy` values at their first read (module notes)."""
 
     def _resolve(self, key: Any, value: Any) -> Any:
-        if type(value) is Lazy:
+        if type(value) in _LAZY:
             value = value.compute()
             dict.__setitem__(self, key, value)
         return value
 
     def _resolved(self) -> None:
         for key, value in list(dict.items(self)):
-            if type(value) is Lazy:
+            if type(value) in _LAZY:
                 self._resolve(key, value)
 
     def __getitem__(self, key: Any) -> Any:

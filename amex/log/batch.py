@@ -1,9 +1,13 @@
 """The outer steps a log keeps until it writes them: numbers in rows, encoded a batch at a time.
 
-:class:`StepBatch` copies what the log needs of each step (:meth:`StepBatch.add`) into
-preallocated rows (time, q, q_dot, q_ddot, tau, y, y_dot, goal) and keeps the rest (obstacles,
-command, internals) as the step gave them, copied where the loop or the method may reuse a
-buffer. :meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
+:class:`StepBatch` keeps what the log needs of each step (:meth:`StepBatch.add`): the simulator's
+buffers (q_ddot, tau) and the command's parts are copied into preallocated rows; q, q_dot, y,
+y_dot and the goal, which the episode loop makes anew at every outer step for the observation
+and the logs (:mod:`amex.sim.episode`), are kept as they are and stacked into their rows a
+batch at a time (:meth:`StepBatch.fill`: five calls per batch instead of five per step, which
+ran cold between the inner steps); the rest (obstacles, command of another shape, internals) is
+kept as the step gave it, copied where the loop or the method may reuse a buffer.
+:meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
 (:func:`amex.log.wire.encode_steps`) and ``/tcp`` and ``/goal`` (:func:`encode_numbers`) in two
 compiled calls: the per-step Python is left with the SDK's writes (issue #29: one compiled call
 per message and step cost ~2 us of dispatch each).
@@ -23,8 +27,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numba
 import numpy as np
 
+from amex.core.lazy import Lazy
 from amex.log.flat_proto import varint
-from amex.log.method_topic import Captured
 from amex.log.wire import StepEncoding, double_field, encode_steps, varint_field
 
 if TYPE_CHECKING:
@@ -36,8 +40,8 @@ class Kept(NamedTuple):
 
     obstacles: np.ndarray  # the observation's (a new array each step)
     command: bytes | None  # the /command message of a command of another shape, else None
-    method: Captured  # what the /method message needs (MethodTopic.capture)
-    plan: np.ndarray | None  # a copy of internals()["plan"] where the scene draws it, else None
+    method: dict[str, Any]  # what the /method message needs (MethodTopic.snapshot)
+    plan: Any  # where the scene draws it, internals()["plan"]: copied, or its Lazy; else None
 
 
 class Encoded(NamedTuple):
@@ -60,7 +64,8 @@ class StepBatch:
 
     Attributes:
         count: the rows filled.
-        t, ns, q, v, qacc, tau, y, yd, goal: the rows (only the first :attr:`count` are valid).
+        t, ns, q, v, qacc, tau, y, yd, goal: the rows (only the first :attr:`count` are valid;
+            ns, q, v, y, yd and goal once :meth:`fill` ran).
         kept: per row, its :class:`Kept`.
     """
 
@@ -68,6 +73,7 @@ class StepBatch:
         self.count = 0
         self.t = np.zeros(capacity)
         self.ns = np.zeros(capacity, dtype=np.int64)
+        self._stamps = np.zeros(capacity)  # t * 1e9 rounded (as round(t * 1e9), ties to even)
         self.q, self.v, self.qacc, self.tau = (np.zeros((capacity, n)) for _ in range(4))
         self.y, self.yd = np.zeros((capacity, m)), np.zeros((capacity, m))
         self.goal = np.zeros((capacity, 3))
@@ -76,6 +82,7 @@ class StepBatch:
         self.command = np.zeros((capacity, 2 * (m + n)))
         self.parts = np.zeros((capacity, 4), dtype=np.int64)  # 1: the part is there
         self.kept: list[Kept] = []
+        self._fresh: list[tuple[np.ndarray, ...]] = []  # per row: q, q_dot, y, y_dot, goal
         self._packers: dict[tuple[int, ...], tuple[struct.Struct, list[bytes]]] = {}
         self._encoding = encoding
         self._joint_size = encoding.size if encoding is not None else 0
@@ -87,27 +94,22 @@ class StepBatch:
     def __len__(self) -> int:
         return self.count
 
-    def add(self, step: StepRecord, method: Captured, plan: np.ndarray | None) -> None:
-        """Copy ``step`` into the next row (the batch must not be full).
+    def add(self, step: StepRecord, method: dict[str, Any], plan: Any) -> None:
+        """Keep ``step`` as the next row (the batch must not be full; module notes).
 
         Args:
             step: the outer step.
             method: what its ``/method`` message needs
-                (:meth:`~amex.log.method_topic.MethodTopic.capture`).
-            plan: its plan to draw (copied here), or None.
+                (:meth:`~amex.log.method_topic.MethodTopic.snapshot`).
+            plan: its plan to draw (copied here; a :class:`~amex.core.lazy.Lazy` is kept as it
+                is, to be computed when the batch is written), or None.
         """
         i = self.count
         state, obs = step.state, step.observation
         t = step.t
         self.t[i] = t
-        self.ns[i] = round(t * 1e9)
-        self.q[i] = state.q
-        self.v[i] = state.v
         self.qacc[i] = step.qacc  # the simulator's buffers: copied here
         self.tau[i] = step.tau
-        self.y[i] = obs.y
-        self.yd[i] = obs.yd
-        self.goal[i] = obs.goal[:3]
         command = None
         parts, offsets, row = self.parts[i], self._offsets, self.command[i]
         if len(step.command) <= 4:
@@ -123,8 +125,10 @@ class StepBatch:
             command = self._packed_command(t, step.command)
         if command is not None:
             parts[:] = -1  # not in the rows: written from its kept message
-        copy = None if plan is None else np.array(plan, dtype=float)
-        self.kept.append(Kept(obs.obstacles, command, method, copy))
+        if plan is not None and not isinstance(plan, Lazy):  # a lazy one is a snapshot
+            plan = np.array(plan, dtype=float)
+        self.kept.append(Kept(obs.obstacles, command, method, plan))
+        self._fresh.append((state.q, state.v, obs.y, obs.yd, obs.goal))
         self.count = i + 1
 
     def _packed_command(self, t: float, command: tuple[np.ndarray | None, ...]) -> bytes:
@@ -145,6 +149,21 @@ class StepBatch:
         """Empty the batch: the next step goes into the first row (:attr:`kept` is a new list)."""
         self.count = 0
         self.kept = []
+        self._fresh = []
+
+    def fill(self) -> int:
+        """Fill the rows from the arrays :meth:`add` kept (before :meth:`clear`); their count."""
+        k = self.count
+        if k and self._fresh:
+            q, v, y, yd, goal = zip(*self._fresh, strict=True)
+            np.stack(q, out=self.q[:k])
+            np.stack(v, out=self.v[:k])
+            np.stack(y, out=self.y[:k])
+            np.stack(yd, out=self.yd[:k])
+            self.goal[:k] = np.stack(goal)[:, :3]
+            np.rint(self.t[:k] * 1e9, out=self._stamps[:k])
+            self.ns[:k] = self._stamps[:k]
+        return k
 
     def encode(self, k: int) -> Encoded:
         """The first ``k`` rows' ``/tf``, ``/joint_states``, ``/tcp`` and ``/goal`` messages."""

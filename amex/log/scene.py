@@ -25,6 +25,7 @@ import foxglove
 import numpy as np
 from foxglove.messages import SceneEntity, SceneUpdate
 
+from amex.core.lazy import Lazy, LazyRows
 from amex.log import messages as M
 from amex.log import scene_wire as W
 from amex.log.frames import WORLD_FRAME
@@ -87,7 +88,17 @@ class SceneChannels:
         return [self.world, self.path, self.plan, self.reference]
 
     def publish_world(self, t: float, goal: np.ndarray, obstacles: np.ndarray) -> None:
-        """Goal and obstacles: when they moved (> 1 mm) or a second passed since last time."""
+        """Log :meth:`world_update`, if any."""
+        update = self.world_update(t, goal, obstacles)
+        if update is not None:
+            self.world.base.log(update, round(t * 1e9))
+
+    def world_update(self, t: float, goal: np.ndarray, obstacles: np.ndarray) -> bytes | None:
+        """Goal and obstacles: when they moved (> 1 mm) or a second passed since last time.
+
+        Returns:
+            The ``/scene/world`` message at ``t`` [s], None if nothing is due.
+        """
         gx, gy, gz = goal[:3].tolist()
         key = [gx, gy, gz]
         if self._obstacles_move:
@@ -99,7 +110,7 @@ class SceneChannels:
             else:
                 moved = sum(abs(a - b) for a, b in zip(key, last, strict=True))
             if moved < 1e-3:
-                return
+                return None
         self._world_key, self._world_time = key, t
         ns = round(t * 1e9)
         (center,) = W.positions(np.array([[gx, gy, gz]]))
@@ -109,13 +120,16 @@ class SceneChannels:
             centers = np.asarray(obstacles, dtype=float).reshape(-1, 3)[: len(self._radii)]
             spheres = list(zip(self._obstacle_spheres, W.positions(centers), strict=False))
             update += W.spheres_entity(ns, self._obstacle_entity, spheres)
-        self.world.base.log(update, ns)
+        return update
 
     def publish_reference(self, t: float) -> None:
-        """The reference line, due again a second later."""
-        ns = round(t * 1e9)
-        self.reference.base.log(W.line_update(self._reference_line, ns, self._reference_points), ns)
+        """Log :meth:`reference_update`."""
+        self.reference.base.log(self.reference_update(t), round(t * 1e9))
+
+    def reference_update(self, t: float) -> bytes:
+        """The ``/scene/reference`` message at ``t`` [s]; the line is due again a second later."""
         self.next_reference = t + 1.0
+        return W.line_update(self._reference_line, round(t * 1e9), self._reference_points)
 
     def add_path_point(self, x: float, y: float, z: float) -> None:
         """One more point of the executed TCP path (drawn at the next :meth:`publish_path`)."""
@@ -127,21 +141,44 @@ class SceneChannels:
         self._path_count += 1
 
     def publish_path(self, t: float) -> None:
-        """The executed TCP path so far (nothing before its first point)."""
-        if self._path_count:
-            ns = round(t * 1e9)
-            points = W.line_points(self._path_points[: self._path_count])
-            self.path.base.log(W.line_update(self._path_line, ns, points), ns)
+        """Log :meth:`path_update`, if any."""
+        update = self.path_update(t)
+        if update is not None:
+            self.path.base.log(update, round(t * 1e9))
 
-    def publish_plan(self, t: float, plan: Any) -> None:
-        """The method's current plan if it is an ``(k, >=3)`` array (else nothing)."""
-        if isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3:
-            if len(plan) not in self._plan_rows:
-                self._plan_rows[len(plan)] = M.point_rows(len(plan), self._max_line_points)
-            rows = self._plan_rows[len(plan)]
-            ns = round(t * 1e9)
-            points = W.line_points(plan if rows is None else plan[rows])
-            self.plan.base.log(W.line_update(self._plan_line, ns, points), ns)
+    def path_update(self, t: float) -> bytes | None:
+        """The executed TCP path so far, ``/scene/path``'s message (None before a first point)."""
+        if not self._path_count:
+            return None
+        ns = round(t * 1e9)
+        points = W.line_points(self._path_points[: self._path_count])
+        return W.line_update(self._path_line, ns, points)
+
+    def plan_update(self, t: float, plan: Any) -> bytes | None:
+        """The method's current plan as ``/scene/plan``'s message, if it is an ``(k, >=3)`` array.
+
+        A :class:`~amex.core.lazy.LazyRows` plan is computed at the rows drawn alone (the same
+        points), another :class:`~amex.core.lazy.Lazy` whole. None: no plan to draw.
+        """
+        if isinstance(plan, LazyRows):
+            rows = self._rows(plan.length)
+            plan, rows = plan.take(rows), None
+        else:
+            if isinstance(plan, Lazy):
+                plan = plan.compute()
+            rows = self._rows(len(plan)) if isinstance(plan, np.ndarray) and plan.ndim else None
+        if not (isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3):
+            return None
+        points = W.line_points(plan if rows is None else plan[rows])
+        return W.line_update(self._plan_line, round(t * 1e9), points)
+
+    def _rows(self, k: int) -> np.ndarray | None:
+        """The rows drawn of a plan of ``k`` (:func:`amex.log.messages.point_rows`), kept."""
+        try:
+            return self._plan_rows[k]
+        except KeyError:
+            rows = self._plan_rows[k] = M.point_rows(k, self._max_line_points)
+            return rows
 
 
 def _scene_channel(topic: str, context: foxglove.Context) -> foxglove.Channel:

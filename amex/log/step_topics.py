@@ -13,8 +13,7 @@ path), so a step costs their SDK writes; ``/method``'s values are taken when the
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from typing import Any
+from typing import Any, NamedTuple
 
 import foxglove
 import numpy as np
@@ -22,7 +21,24 @@ from foxglove.messages import JointState, JointStates, Timestamp
 
 from amex.log.batch import Kept, StepBatch
 from amex.log.constants import LogConstants
-from amex.log.method_topic import Captured, MethodTopic
+from amex.log.method_topic import MethodTopic
+
+
+class StepMessages(NamedTuple):
+    """A batch's per-step messages (:meth:`StepTopics.messages`).
+
+    Attributes:
+        steps: per step, its messages in the log's order, each as (its channel's ``log``, its
+            bytes); the logger appends the scene's.
+        times: per step, its time [s].
+        stamps: per step, its time [ns] (every message's log time and timestamp).
+        tcps: per step, the TCP position [m] (the scene's executed path).
+    """
+
+    steps: list[list[tuple[Any, bytes]]]
+    times: list[float]
+    stamps: list[int]
+    tcps: list[list[float]]
 
 
 class StepTopics:
@@ -47,62 +63,64 @@ class StepTopics:
         self._method = MethodTopic()  # /method's schema, at the first step
         self.method_channel: foxglove.Channel | None = None
 
-    def method_values(self, t: float, internals: dict[str, Any]) -> Captured:
+    def method_values(self, t: float, internals: dict[str, Any]) -> dict[str, Any]:
         """What ``/method``'s message of a step needs: numbers, flags, texts, small arrays.
 
         The first step makes the channel and its schema from its ``internals()``
-        (:class:`amex.log.method_topic.MethodTopic`). The message is encoded by :meth:`write`,
-        with the batch (:meth:`~amex.log.method_topic.MethodTopic.capture`).
+        (:class:`amex.log.method_topic.MethodTopic`). The message is encoded by
+        :meth:`messages`, with the batch (:meth:`~amex.log.method_topic.MethodTopic.snapshot`).
         """
         method = self._method
         if method.kinds is None:
             self.method_channel = method.schema(t, internals).channel("/method", self._context)
             self._channels["/method"] = self.method_channel.base
-        return method.capture(internals)
+        return method.snapshot(internals)
 
-    def write(
-        self, batch: StepBatch, k: int, kept: list[Kept]
-    ) -> Iterator[tuple[float, list[float]]]:
-        """Log the first ``k`` rows of ``batch`` (and their ``kept``) in order.
+    def messages(self, batch: StepBatch, k: int, kept: list[Kept]) -> StepMessages:
+        """The messages of the first ``k`` rows of ``batch`` (and their ``kept``), encoded.
 
-        After each step, yields its time [s] and TCP position [m], for the scene.
+        Each kind for all the rows in a row (the batch's compiled encoders, then ``/method``),
+        so that each loop runs warm; the logger adds the scene's and writes them (class notes).
         """
         encoded = batch.encode(k)
         data = encoded.data
         times, stamps = batch.t[:k].tolist(), batch.ns[:k].tolist()
-        tcps = batch.y[:k, :3].tolist()
         numbers = encoded.numbers.tolist()
-        joints = encoded.joints.tolist() if encoded.joints is not None else None
         channels = self._channels
-        tf, joint_states = channels["/tf"], channels["/joint_states"]
-        tcp, goal, command = channels["/tcp"], channels["/goal"], channels["/command"]
-        method, encode = channels.get("/method"), self._method.encode_captured
-        for i in range(k):
-            ns, step = stamps[i], kept[i]
-            if joints is not None:
-                a, b, c = joints[i]
-                tf.log(data[a:b], ns)
-                joint_states.log(data[b:c], ns)
-            else:
-                self._log_joints_generic(ns, batch.q[i], batch.v[i], batch.qacc[i], batch.tau[i])
-            a, b, c, d = numbers[i]
-            tcp.log(data[a:b], ns)
-            goal.log(data[b:c], ns)
-            command.log(data[c:d] if step.command is None else step.command, ns)
-            if method is not None:
-                method.log(encode(times[i], step.method), ns)
-            yield times[i], tcps[i]
+        tf, joint_states = channels["/tf"].log, channels["/joint_states"].log
+        tcp, goal, command = channels["/tcp"].log, channels["/goal"].log, channels["/command"].log
+        steps: list[list[tuple[Any, bytes]]] = []
+        if encoded.joints is not None:
+            for a, b, c in encoded.joints.tolist():
+                steps.append([(tf, data[a:b]), (joint_states, data[b:c])])
+        else:
+            for i in range(k):
+                q, v, qacc, tau = batch.q[i], batch.v[i], batch.qacc[i], batch.tau[i]
+                steps.append(self._joints_generic(q, v, qacc, tau, stamps[i]))
+        for out, (a, b, c, d), step in zip(steps, numbers, kept, strict=True):
+            out += (
+                (tcp, data[a:b]),
+                (goal, data[b:c]),
+                (command, data[c:d] if step.command is None else step.command),
+            )
+        method = channels.get("/method")
+        if method is not None:
+            log, encode = method.log, self._method.encode_snapshot
+            for out, t, step in zip(steps, times, kept, strict=True):
+                out.append((log, encode(t, step.method)))
+        return StepMessages(steps, times, stamps, batch.y[:k, :3].tolist())
 
-    def _log_joints_generic(
-        self, ns: int, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, tau: np.ndarray
-    ) -> None:
+    def _joints_generic(
+        self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, tau: np.ndarray, ns: int
+    ) -> list[tuple[Any, bytes]]:
         """``/tf`` and ``/joint_states`` as the SDK's objects (a transform of no compiled kind)."""
         stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)  # sim_stamp(t)
-        self._channels["/tf"].log(self._constants.links.message(q, stamp).encode(), ns)
+        tf = self._constants.links.message(q, stamp).encode()
         qs, vs, qdd, taus = q.tolist(), v.tolist(), qacc.tolist(), tau.tolist()
         joints = [
             JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
             for n, a, b, c, d in zip(self._constants.joint_names, qs, vs, qdd, taus, strict=False)
         ]
         message = JointStates(timestamp=stamp, joints=joints)
-        self._channels["/joint_states"].log(message.encode(), ns)
+        channels = self._channels
+        return [(channels["/tf"].log, tf), (channels["/joint_states"].log, message.encode())]

@@ -350,30 +350,53 @@ class EpisodeLogger:
         if self._closed:
             return
         batch, internals = self._batch, step.internals
-        plan = (
-            internals.get("plan") if (self._steps + batch.count) % self._path_every == 0 else None
-        )
+        plan = None  # as given: a lazy plan is computed when the batch draws it (amex.log.scene)
+        if (self._steps + batch.count) % self._path_every == 0:
+            plan = dict.get(internals, "plan")
         batch.add(step, self._topics.method_values(step.t, internals), plan)
         if batch.count >= BATCH:
             self._flush()
 
     def _flush(self) -> None:
-        """Write the kept steps, in order, every topic of a step before the next step's."""
+        """Write the kept steps, in order, every topic of a step before the next step's.
+
+        Encoded first, a kind at a time for the whole batch (the per-step topics, then the
+        plans, then the rest of the scene), and then written in one loop of the SDK's calls:
+        each loop runs warm (issue #29; interleaved, the same calls cost up to several times
+        their time in a loop).
+        """
         batch, scene, every = self._batch, self._scene, self._path_every
-        count, kept = batch.count, batch.kept
+        count, kept = batch.fill(), batch.kept
         batch.clear()  # first: a SIGTERM's close() meanwhile writes none of them twice
-        steps = self._topics.write(batch, count, kept) if count else ()
-        for i, (t, tcp) in enumerate(steps):
-            scene.publish_world(t, batch.goal[i], kept[i].obstacles)
+        if count:
+            encoded = self._topics.messages(batch, count, kept)
+            steps, times, stamps = encoded.steps, encoded.times, encoded.stamps
+            first = self._steps
+            drawn = range((-first) % every, count, every)  # the steps that draw path and plan
+            plans = {i: scene.plan_update(times[i], kept[i].plan) for i in drawn}
+            world_log, path_log = scene.world.base.log, scene.path.base.log
+            plan_log, reference_log = scene.plan.base.log, scene.reference.base.log
+            goals = batch.goal
+            for i, (t, tcp, out) in enumerate(zip(times, encoded.tcps, steps, strict=True)):
+                update = scene.world_update(t, goals[i], kept[i].obstacles)
+                if update is not None:
+                    out.append((world_log, update))
+                if i in plans:
+                    scene.add_path_point(tcp[0], tcp[1], tcp[2])
+                    path = scene.path_update(t)
+                    if path is not None:
+                        out.append((path_log, path))
+                    if plans[i] is not None:
+                        out.append((plan_log, plans[i]))
+                if t >= scene.next_reference:
+                    out.append((reference_log, scene.reference_update(t)))
+            for out, ns in zip(steps, stamps, strict=True):
+                for log, data in out:
+                    log(data, ns)
+            self._steps = first + count
+            self._t = times[-1]
+            tcp = encoded.tcps[-1]
             self._last_tcp = (tcp[0], tcp[1], tcp[2])
-            if self._steps % every == 0:
-                scene.add_path_point(tcp[0], tcp[1], tcp[2])
-                scene.publish_path(t)
-                scene.publish_plan(t, kept[i].plan)
-            if t >= scene.next_reference:
-                scene.publish_reference(t)
-            self._steps += 1
-            self._t = t
         if self._failures.cause:  # stop the episode: the rest of the log could not be written
             raise WriteError(self.part_path, self._failures.cause)
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from amex.core.compiled import kernel
 from amex.core.errors import ConfigError
-from amex.core.lazy import Lazy, LazyDict
+from amex.core.lazy import LazyDict, LazyRows
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation
@@ -368,7 +368,8 @@ class CR(Method):
         ``plan`` is the TCP position at every knot of the current plan, shape (T + 1, 3) [m],
         computed by batched kinematics (~0.1 ms for 400 knots) only when it is read: the dict
         is a :class:`~amex.core.lazy.LazyDict` holding this step's knots (a new array at each
-        solve, never written in place), so a reader may read it later and still get this step's.
+        solve, never written in place), so a reader may read it later and still get this step's;
+        a :class:`~amex.core.lazy.LazyRows`, so the log's scene computes only the knots it draws.
         """
         s, knots, kinematics, tcp = (
             self._status,
@@ -376,6 +377,7 @@ class CR(Method):
             self.kinematics,
             self.robot.tcp_frame_id,
         )
+        positions = kinematics.frame_positions
         return LazyDict(
             mode=s.mode,
             steps=s.steps,
@@ -383,5 +385,8 @@ class CR(Method):
             cost=s.cost,
             converged=s.converged,
             solve_time=s.solve_time,
-            plan=Lazy(lambda: kinematics.frame_positions(knots, tcp)),
+            plan=LazyRows(
+                len(knots),
+                lambda rows: positions(knots if rows is None else knots[rows], tcp),
+            ),
         )

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 
 from amex.core.errors import ConfigError
+from amex.core.lazy import LazyDict, LazyRows
 from amex.core.scaling import scaled
 from amex.core.types import Command
 from amex.methods.base import Method, MethodConfig, Observation, invalid, require_finite
@@ -504,10 +505,16 @@ class MPPI(Method):
     def internals(self) -> dict[str, Any]:
         """The last step's :class:`MPPIStatus`, the early-stop count and the nominal TCP path.
 
-        ``plan`` is the TCP position at the nominal's knots, shape (H + 1, 3) [m], computed here
-        (i.e. only when logged).
+        ``plan`` is the TCP position at the nominal's knots, shape (H + 1, 3) [m], computed when
+        it is read (a :class:`~amex.core.lazy.LazyRows` of this step's knots, as CR's: the log's
+        scene reads it every 5th step, and only the knots it draws).
         """
-        s = self._status
-        path = self.nominal_path()
-        plan = self.kinematics.frame_positions(path, self.robot.tcp_frame_id) if len(path) else path
-        return {**s._asdict(), "early_stops": self.early_stops, "plan": plan}
+        s, path = self._status, self.nominal_path()
+        kinematics, tcp = self.kinematics, self.robot.tcp_frame_id
+        plan: Any = path
+        if len(path):
+            plan = LazyRows(
+                len(path),
+                lambda rows: kinematics.frame_positions(path if rows is None else path[rows], tcp),
+            )
+        return LazyDict(**s._asdict(), early_stops=self.early_stops, plan=plan)

@@ -136,3 +136,59 @@ def test_a_step_is_captured_with_its_values_and_encoded_later_as_they_were():
     values[0] = 9.0
     assert topic.encode_captured(0.01, captured) == expected
     assert topic.encode_captured(0.01, captured) != topic.encode(0.01, internals)
+
+
+def test_numbers_and_arrays_are_one_pack_with_the_general_rules_bytes():
+    """AMEX's steps (numbers and small arrays): one ``struct`` pack per sizes of the arrays."""
+    first = {"s": 0.25, "delta_g": np.float64(0.5), "y_star": np.zeros(6), "yd_star": np.ones(6)}
+    topic = MethodTopic()
+    schema = topic.schema(0.0, first)
+    decoder = FlatDecoder(schema.descriptor_set(), schema.name)
+    rng = np.random.default_rng(1)
+    variants = [
+        first,
+        {**first, "y_star": rng.normal(size=6), "s": -0.0, "delta_g": np.int64(-7)},
+        {**first, "y_star": np.array([math.nan, math.inf, -math.inf, 0.0, -0.0, 1e308])},
+        {**first, "y_star": np.arange(4), "yd_star": np.array([2**60, -1])},  # int arrays
+        {**first, "y_star": np.array([1.5, 2.25], dtype=np.float32)},
+        {**first, "y_star": np.zeros(0)},  # empty: a field of no doubles
+        {**first, "y_star": np.zeros(64), "yd_star": np.zeros(65)},  # the largest; too large
+        {**first, "y_star": np.zeros((2, 3))},  # not (k,): left out
+        {**first, "y_star": np.array([True, False])},  # flags: another kind, left out
+        {**first, "y_star": np.zeros(6)[::2]},  # a strided view
+        {**first, "s": 3, "y_star": [0.5, 1.5]},  # an int; a list: the converters
+    ]
+    for rep in range(2):  # the second pass reuses the cached packers
+        for k, internals in enumerate(variants):
+            t = 0.01 * k + rep
+            fast = topic.encode(t, internals)
+            assert fast == topic.reference_encode(t, internals), internals
+            assert decoder.decode(fast)["t"] == t
+    recipe, _ = topic.capture(first)
+    assert recipe.packed is None and recipe.vectors is not None and (6, 6) in recipe.vectors
+    read = decoder.decode(topic.encode(1.0, variants[3]))
+    assert read["y_star"] == [0.0, 1.0, 2.0, 3.0] and read["yd_star"] == [float(2**60), -1.0]
+
+
+def test_a_snapshot_keeps_the_steps_values_and_computes_nothing():
+    from amex.core.lazy import Lazy, LazyDict
+
+    computed = []
+    buffer, values = np.array([0.1, 0.2, 0.3]), [1.0, 2.0]
+
+    def plan():
+        computed.append(1)
+        return np.zeros((80, 3))
+
+    topic = MethodTopic()
+    topic.schema(0.0, {"s": 0.5, "y_star": buffer, "listed": values, "plan": np.zeros((80, 3))})
+    internals = LazyDict(s=0.5, y_star=buffer, listed=values, plan=Lazy(plan))
+    expected = topic.encode(0.01, {"s": 0.5, "y_star": buffer.copy(), "listed": list(values)})
+    snap = topic.snapshot(internals)
+    assert not computed  # the lazy plan is not in the schema: never computed for /method
+    buffer[:] = 9.0  # a method that reuses its buffers for the next step
+    values[0] = 9.0
+    assert topic.encode_snapshot(0.01, snap) == expected
+    assert not computed
+    plain = topic.snapshot({"s": 0.5, "y_star": buffer, "listed": values})
+    assert type(plain) is dict and plain["y_star"] is not buffer and plain["listed"] is not values
