@@ -3,15 +3,15 @@
 :func:`log_overhead` runs environments of a task with a method exactly as a run builds them
 (:func:`amex.experiment.runner.setup`, then :func:`~amex.experiment.runner.run_setup`), each one
 without and with a log file (a temporary directory), in turn, ``rounds`` times (the medians of
-its rounds: ``--rounds``, 3 by default), so that both see the same load of the machine. Each episode is timed whole, set-up of the method and the logger
-and the log's finish included, in thread CPU time (``time.thread_time_ns``) and wall time. The
-first environment is run once before, unlogged and logged, so that caches (reference plan, Numba,
-the URDF's joints) are warm; then the heap is frozen, as ``amex-run`` freezes it once its
-episodes are set up (:func:`amex.app.heap.settle`). Without that, the cyclic collector's full
-collections, which the log's allocations trigger and an unlogged episode does not, walk the whole
-set-up: ~8 ms per logged episode of the DMP on Task 1 (2026-12-06), 7 points of its overhead that
-no run pays. The log's cost includes the method's ``internals()``, which the episode loop calls
-only for a recorder.
+its rounds: ``--rounds``, 3 by default), so that both see the same load of the machine. Each
+episode is timed whole, set-up of the method and the logger and the log's finish included, in
+thread CPU time (``time.thread_time_ns``) and wall time. The first environment is run once
+before, unlogged and logged, so that caches (reference plan, Numba, the URDF's joints) are warm;
+then the heap is frozen, as ``amex-run`` freezes it once its episodes are set up
+(:func:`amex.app.heap.settle`). Without that, the cyclic collector's full collections, which the
+log's allocations trigger and an unlogged episode does not, walk the whole set-up: on 2026-12-06,
+one every ~6 logged episodes of the DMP on Task 1, ~48 ms each, a cost no run pays. The log's
+cost includes the method's ``internals()``, which the episode loop calls only for a recorder.
 
 Nothing here asserts a time. ``python -m amex.app.bench_log --tasks 1 2 3 4 --methods amex dmp cr``
 prints, per task and method, the median and p95 of the per-episode overhead ``logged / plain - 1``,

@@ -38,12 +38,15 @@ class LogConstants(NamedTuple):
         encoding: the constant parts of ``/tf`` and ``/joint_states``; None when some transform
             takes the generic path (the messages are then built as the SDK's objects).
         reference_json: the ``/reference`` message.
+        robot_record: the ``robot`` metadata record (name, URDF, package directories, joint
+            names, q0, the URDF's links), its values JSON texts.
     """
 
     links: LinkTransforms
     joint_names: list[str]
     encoding: StepEncoding | None
     reference_json: bytes
+    robot_record: dict[str, str]
 
 
 _CACHE: list[tuple[weakref.ref[Any], weakref.ref[Any], LogConstants]] = []
@@ -70,4 +73,14 @@ def _compute(robot: RobotModel, plan: ReferencePlan) -> LogConstants:
         else None
     )
     reference = M.reference_json(np.asarray(plan.y), plan.dt, plan.duration)
-    return LogConstants(links, joint_names, encoding, reference)
+    record = M.metadata_record(
+        {
+            "name": robot.name,
+            "urdf_path": robot.urdf_path,
+            "package_dirs": list(getattr(robot.description, "package_dirs", ()) or ()),
+            "joint_names": joint_names,
+            "q0": robot.q0,
+            "links": [list(link) for link in links.links],
+        }
+    )
+    return LogConstants(links, joint_names, encoding, reference, record)

@@ -15,6 +15,7 @@ reader (:mod:`amex.log.reader`) gives ``None`` for it, as the JSON messages of e
 
 from __future__ import annotations
 
+import functools
 import re
 import struct
 from collections.abc import Sequence
@@ -65,8 +66,11 @@ class FlatSchema(NamedTuple):
     fields: tuple[tuple[str, str], ...]
 
     def descriptor_set(self) -> bytes:
-        """The serialized ``FileDescriptorSet`` of this one message (:func:`descriptor_set`)."""
-        return descriptor_set(self.name, self.fields)
+        """The serialized ``FileDescriptorSet`` of this one message (:func:`descriptor_set`).
+
+        Kept per schema: every log makes the channels of ``/tcp``, ``/goal`` and ``/command``.
+        """
+        return _descriptor_set(self.name, self.fields)
 
     def schema(self) -> foxglove.Schema:
         """The MCAP schema record's content (name, ``protobuf``, the descriptor set)."""
@@ -77,6 +81,11 @@ class FlatSchema(NamedTuple):
         return foxglove.Channel(
             topic, schema=self.schema(), message_encoding="protobuf", context=context
         )
+
+
+@functools.lru_cache(maxsize=256)
+def _descriptor_set(full_name: str, fields: tuple[tuple[str, str], ...]) -> bytes:
+    return descriptor_set(full_name, fields)
 
 
 def descriptor_set(full_name: str, fields: Sequence[tuple[str, str]]) -> bytes:

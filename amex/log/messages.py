@@ -7,11 +7,13 @@ protobuf (:mod:`amex.log.flat_proto`). :func:`value_schema` still names the kind
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import fields
 from typing import Any
 
+import foxglove
 import numpy as np
 from foxglove.messages import (
     Color,
@@ -142,6 +144,21 @@ def json_schemas(m: int = 6) -> dict[str, dict[str, Any]]:
     return {"/reference": reference_schema(m), "/episode": episode_schema()}
 
 
+@functools.lru_cache(maxsize=16)
+def json_channel_schemas(m: int = 6) -> dict[str, foxglove.Schema]:
+    """:func:`json_schemas` as the SDK's schema records, made once per ``m``.
+
+    What ``foxglove.Channel`` makes of a dict schema (``jsonschema``, its ``title`` as the name,
+    its ``json.dumps``), which it would otherwise encode again for every log.
+    """
+    return {
+        topic: foxglove.Schema(
+            name=schema["title"], encoding="jsonschema", data=json.dumps(schema).encode("utf-8")
+        )
+        for topic, schema in json_schemas(m).items()
+    }
+
+
 def viewer_schema_problems(schema: Any, where: str = "schema") -> list[str]:
     """What Foxglove (1.48 and Lichtblick) would reject in a JSON channel's schema; [] if none.
 
@@ -192,6 +209,11 @@ def viewer_schema_problems(schema: Any, where: str = "schema") -> list[str]:
         else:
             problems.append(f"{path}: unsupported type {kind!r}")
     return problems
+
+
+def metadata_record(values: dict[str, Any]) -> dict[str, str]:
+    """An MCAP metadata record of ``values``: each key's value as a JSON text (:func:`jsonable`)."""
+    return {str(k): json.dumps(jsonable(v)) for k, v in values.items()}
 
 
 def jsonable(value: Any) -> Any:

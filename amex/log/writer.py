@@ -59,7 +59,6 @@ file, restores the previous handler and re-delivers the signal to it.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import threading
@@ -184,8 +183,8 @@ class EpisodeLogger:
             for topic, schema in (("/tcp", P.TCP), ("/goal", P.GOAL), ("/command", P.COMMAND))
         }
         self._json = {
-            topic: foxglove.Channel(topic, schema=schema, context=ctx)
-            for topic, schema in M.json_schemas(np.shape(plan.y)[1]).items()
+            topic: foxglove.Channel(topic, schema=schema, message_encoding="json", context=ctx)
+            for topic, schema in M.json_channel_schemas(int(np.shape(plan.y)[1])).items()
         }
         step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
         self._topics = StepTopics(ctx, self._constants, step_channels)
@@ -294,9 +293,7 @@ class EpisodeLogger:
     # -- content ---------------------------------------------------------------------------
 
     def _write_metadata(self, name: str, values: dict[str, Any]) -> None:
-        self._writer.write_metadata(
-            name, {str(k): json.dumps(M.jsonable(v)) for k, v in values.items()}
-        )
+        self._writer.write_metadata(name, M.metadata_record(values))
 
     def _write_header(
         self, robot: RobotModel, plan: ReferencePlan, scenario: Scenario, metadata: dict[str, Any]
@@ -317,17 +314,7 @@ class EpisodeLogger:
                 "obstacle_radii": scenario.obstacle_radii,
             },
         )
-        self._write_metadata(
-            "robot",
-            {
-                "name": robot.name,
-                "urdf_path": robot.urdf_path,
-                "package_dirs": list(getattr(robot.description, "package_dirs", ()) or ()),
-                "joint_names": self._constants.joint_names,
-                "q0": robot.q0,
-                "links": [list(link) for link in self._constants.links.links],
-            },
-        )
+        self._writer.write_metadata("robot", self._constants.robot_record)
         self._write_metadata(
             "log",
             {

@@ -127,3 +127,60 @@ def test_points_of_a_line_keep_every_row_when_there_are_few():
     expected = [Point3(x=x, y=y, z=z).encode() for x, y, z in xyz.tolist()]
     assert [p.encode() for p in M.points(xyz, 100)] == expected
     assert M.point_rows(401, 100).tolist()[-1] == 400
+
+
+def test_drawn_rows_are_distinct_increasing_and_those_np_unique_kept():
+    for k in range(101, 2000, 7):
+        rows = M.point_rows(k, 100)
+        expected = np.unique(np.linspace(0, k - 1, 100).round().astype(int))
+        assert np.array_equal(rows, expected) and rows[0] == 0 and rows[-1] == k - 1
+
+
+def test_a_cr_log_writes_each_steps_topics_in_order_and_the_plan_at_its_drawn_knots(tmp_path):
+    """The batch writes every message of a step before the next step's, in the logger's order,
+    and CR's plan (a LazyRows) is drawn at the knots' TCP positions, computed for those alone."""
+    from mcap.reader import make_reader
+
+    from amex.core.lazy import LazyRows
+    from amex.experiment.config import RunConfig
+    from amex.experiment.runner import _scenario, prepare, run_setup_with, setup
+    from amex.log import EpisodeLogger
+    from amex.log.scene import SceneChannels
+    from amex.methods import METHODS
+
+    config = RunConfig(task=1, max_time=1.2)
+    config.method = METHODS["cr"].config_class()
+    run = setup(config, prepare(config))
+    drawn = []  # what the scene drew: the plan's length, the rows asked for, the points
+    plan_update = SceneChannels.plan_update
+
+    def spy(self, t, plan):
+        assert isinstance(plan, LazyRows)  # not computed at the step: at the batch
+        rows = self._rows(plan.length)
+        whole = plan.take(None)
+        drawn.append(whole if rows is None else whole[rows])
+        return plan_update(self, t, plan)
+
+    SceneChannels.plan_update = spy
+    try:
+        path, context = tmp_path / "cr.mcap", run.context
+        scenario = _scenario(run, 0)
+        with EpisodeLogger(path, context.robot, context.plan, scenario, {}) as logger:
+            run_setup_with(run, 0, logger)
+    finally:
+        SceneChannels.plan_update = plan_update
+    order = ["/tf", "/joint_states", "/tcp", "/goal", "/command", "/method", "/scene/world",
+             "/scene/path", "/scene/plan", "/scene/reference"]  # fmt: skip
+    with open(path, "rb") as f:
+        messages = [(m.log_time, c.topic, m.data) for _, c, m in make_reader(f).iter_messages(
+            log_time_order=False)]  # fmt: skip
+    steps = [m for m in messages if m[1] not in ("/reference", "/episode")]
+    times = [t for t, _, _ in steps]
+    assert times == sorted(times)  # the file's order is the steps' order
+    for t in sorted(set(times))[1:-1]:  # every step but the header's and the end's
+        topics = [topic for u, topic, _ in steps if u == t]
+        assert topics[:6] == order[:6] and topics == sorted(topics, key=order.index), topics
+    plans = [data for _, topic, data in steps if topic == "/scene/plan"]
+    assert len(plans) == len(drawn) > 10
+    for data, points in zip(plans, drawn, strict=True):
+        assert W.line_points(points) in data  # the same doubles as the whole plan's rows
