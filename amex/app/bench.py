@@ -277,10 +277,14 @@ def _print_log_cost(quick: bool) -> None:
     """What ``log=full`` adds to an episode's thread CPU (:mod:`amex.app.bench_log`)."""
     from amex.app.bench_log import log_overhead
 
-    print("log=full: thread CPU of each episode logged over the same episode unlogged")
+    print(
+        "log=full: thread CPU of each episode logged over the same episode unlogged"
+        + ("" if quick else " (medians of 3 rounds)")
+    )
     for method in ("amex", "dmp", "cr"):
         for task in (1, 2, 3, 4):
-            times = log_overhead(task, method, range(2 if quick else 4), verbose=False)
+            envs, rounds = (range(2), 1) if quick else (range(4), 3)
+            times = log_overhead(task, method, envs, rounds=rounds, verbose=False)
             total = float(np.sum(times.logged_cpu) / np.sum(times.plain_cpu)) - 1.0
             each = times.overhead()
             floor = float(np.sum(times.floor_cpu) / np.sum(times.plain_cpu))

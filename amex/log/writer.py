@@ -38,12 +38,16 @@ MCAP metadata records: ``episode`` (the caller's metadata: task, method, env, se
 why the log ended early). Values are JSON texts.
 
 Cost (issue #29, ``python -m amex.app.bench_log``): the messages are encoded without the SDK's
-message objects (:mod:`amex.log.wire`, :mod:`amex.log.scene_wire`: the same bytes), the steps
-are kept (:func:`~amex.log.step_topics.capture`, a few copies) and written :data:`BATCH` at a
-time, so the writing code runs warm instead of once between every 10 inner steps; what the run
-shares (link transforms, ``/reference``) is computed once per run (:mod:`amex.log.constants`).
-What remains per outer step is mostly the SDK's writing (a few microseconds per message, six
-to eight messages a step) and its zstd compression (docs/logs.md gives the measured cost).
+message objects (:mod:`amex.log.wire`, :mod:`amex.log.scene_wire`: the same bytes). A step only
+keeps what its messages need (:meth:`~amex.log.batch.StepBatch.add`, a few copies, and
+``/method``'s snapshot); every :data:`BATCH` steps, each kind of message is encoded for the whole
+batch in turn and then all are written in one loop of the SDK's calls, so that each loop runs
+warm instead of once between every 10 inner steps. A plan given as a
+:class:`~amex.core.lazy.LazyRows` is computed there, at the knots drawn alone. What the run shares
+(link transforms, ``/reference``, the robot's record, the schemas) is made once per run
+(:mod:`amex.log.constants`). What remains is mostly the SDK's writing (~2 us per message, six
+to nine messages a step) and the steps' values taken between the inner steps, where they run
+cold (docs/results/speed.md gives the measured cost).
 
 Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
 finished log never has the suffix, and no existing file is ever overwritten: an existing
