@@ -377,8 +377,9 @@ class EpisodeLogger:
                     path = scene.path_update(t)
                     if path is not None:
                         out.append((path_log, path))
-                    if plans[i] is not None:
-                        out.append((plan_log, plans[i]))
+                    plan = plans[i]
+                    if plan is not None:
+                        out.append((plan_log, plan))
                 if t >= scene.next_reference:
                     out.append((reference_log, scene.reference_update(t)))
             for out, ns in zip(steps, stamps, strict=True):
