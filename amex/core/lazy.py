@@ -49,6 +49,14 @@ class LazyRows(Lazy):
         self.length = length
         self.rows = rows
 
+    @classmethod
+    def rowwise(cls, compute: Callable[[Any], Any], rows: Any) -> LazyRows:
+        """``compute(rows)``, lazily, for a ``compute`` that maps each row on its own.
+
+        A plan's knots to their TCP positions: some rows are ``compute(rows[index])``.
+        """
+        return cls(len(rows), lambda index: compute(rows if index is None else rows[index]))
+
     def take(self, index: Any) -> Any:
         """The rows ``index`` (an integer array; None: all), computed now (class notes)."""
         return self.rows(index)

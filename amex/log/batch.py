@@ -73,7 +73,6 @@ class StepBatch:
         self.count = 0
         self.t = np.zeros(capacity)
         self.ns = np.zeros(capacity, dtype=np.int64)
-        self._stamps = np.zeros(capacity)  # t * 1e9 rounded (as round(t * 1e9), ties to even)
         self.q, self.v, self.qacc, self.tau = (np.zeros((capacity, n)) for _ in range(4))
         self.y, self.yd = np.zeros((capacity, m)), np.zeros((capacity, m))
         self.goal = np.zeros((capacity, 3))
@@ -161,8 +160,7 @@ class StepBatch:
             np.stack(y, out=self.y[:k])
             np.stack(yd, out=self.yd[:k])
             self.goal[:k] = np.stack(goal)[:, :3]
-            np.rint(self.t[:k] * 1e9, out=self._stamps[:k])
-            self.ns[:k] = self._stamps[:k]
+            self.ns[:k] = np.rint(self.t[:k] * 1e9)  # as round(t * 1e9): ties to even
         return k
 
     def encode(self, k: int) -> Encoded:

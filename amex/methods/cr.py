@@ -385,8 +385,5 @@ class CR(Method):
             cost=s.cost,
             converged=s.converged,
             solve_time=s.solve_time,
-            plan=LazyRows(
-                len(knots),
-                lambda rows: positions(knots if rows is None else knots[rows], tcp),
-            ),
+            plan=LazyRows.rowwise(lambda q: positions(q, tcp), knots),
         )

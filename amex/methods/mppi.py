@@ -510,11 +510,6 @@ class MPPI(Method):
         scene reads it every 5th step, and only the knots it draws).
         """
         s, path = self._status, self.nominal_path()
-        kinematics, tcp = self.kinematics, self.robot.tcp_frame_id
-        plan: Any = path
-        if len(path):
-            plan = LazyRows(
-                len(path),
-                lambda rows: kinematics.frame_positions(path if rows is None else path[rows], tcp),
-            )
+        positions, tcp = self.kinematics.frame_positions, self.robot.tcp_frame_id
+        plan: Any = LazyRows.rowwise(lambda q: positions(q, tcp), path) if len(path) else path
         return LazyDict(**s._asdict(), early_stops=self.early_stops, plan=plan)
