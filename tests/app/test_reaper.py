@@ -52,6 +52,9 @@ def test_a_launcher_killed_by_sigkill_leaves_nothing_after_the_grace():
     proc, reaper, stuck = _launch(1.0, "wait")
     try:
         assert alive(reaper) and alive(stuck)
+        deadline = time.monotonic() + 5  # a child's environment can read empty just after exec
+        while not marked(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.05)
         assert marked(proc.pid) == [stuck]  # the reaper itself carries no mark
         assert f"{MARK}={proc.pid}".encode() not in Path(f"/proc/{reaper}/environ").read_bytes()
         time.sleep(1.5)
