@@ -32,6 +32,7 @@ from foxglove.messages import (
 )
 
 from amex.log.frames import IDENTITY, WORLD_FRAME
+from amex.log.wire import _timestamp, _varint_size, double_field, varint_field
 
 _ENTITIES = b"\x12"  # SceneUpdate.entities (field 2)
 _SPHERES = b"\x4a"  # SceneEntity.spheres (field 9)
@@ -149,28 +150,196 @@ def sphere_encoding(diameter: float, color: Color) -> SphereEncoding:
     )
 
 
-def spheres_entity(ns: int, entity: bytes, spheres: list[tuple[SphereEncoding, bytes]]) -> bytes:
-    """A SceneUpdate entity of spheres, each (its constant parts, its centre's position field).
+class SpheresEncoding(NamedTuple):
+    """The constant parts of a SceneUpdate of sphere entities, for :func:`encode_spheres`.
+
+    Attributes:
+        entities: the SceneEntities' frame_id and id fields, one after the other.
+        entity_ends: where each entity's bytes end in :attr:`entities`, shape (E,).
+        spheres: per sphere, its orientation and then the rest (:class:`SphereEncoding`).
+        sphere_ends: per sphere, where its orientation and its rest end in :attr:`spheres`,
+            shape (S, 2).
+        sphere_entity: per sphere, its entity (non-decreasing), shape (S,).
+        sphere_center: per sphere, the row of its centre among a step's centres, shape (S,).
+    """
+
+    entities: np.ndarray
+    entity_ends: np.ndarray
+    spheres: np.ndarray
+    sphere_ends: np.ndarray
+    sphere_entity: np.ndarray
+    sphere_center: np.ndarray
+
+
+def spheres_encoding(
+    entities: list[tuple[bytes, list[tuple[SphereEncoding, int]]]],
+) -> SpheresEncoding:
+    """The layout of entities, each (``SceneEntity(...).encode()``, its spheres).
+
+    A sphere is (its :func:`sphere_encoding`, the row of its centre among a step's centres).
+    """
+    blob, ends = b"", []
+    parts, part_ends, owners, centers = b"", [], [], []
+    for e, (entity, spheres) in enumerate(entities):
+        blob += entity
+        ends.append(len(blob))
+        for sphere, center in spheres:
+            parts += sphere.orientation
+            orientation_end = len(parts)
+            parts += sphere.rest
+            part_ends.append((orientation_end, len(parts)))
+            owners.append(e)
+            centers.append(center)
+    return SpheresEncoding(
+        np.frombuffer(blob, np.uint8).copy(),
+        np.array(ends, dtype=np.int64),
+        np.frombuffer(parts, np.uint8).copy(),
+        np.array(part_ends, dtype=np.int64).reshape(-1, 2),
+        np.array(owners, dtype=np.int64),
+        np.array(centers, dtype=np.int64),
+    )
+
+
+@numba.njit(cache=True)
+def _position_size(center: np.ndarray) -> int:
+    """The bytes of a Vector3's fields (zero coordinates omitted)."""
+    size = 0
+    for c in range(3):
+        if center[c] != 0.0:
+            size += 9
+    return size
+
+
+@numba.njit(cache=True)
+def _sphere_body(center: np.ndarray, orientation: int, rest: int) -> tuple[int, int]:
+    """A SpherePrimitive's bytes, and its pose's, at ``center``."""
+    pose = 2 + _position_size(center) + orientation
+    return 1 + _varint_size(pose) + pose + rest, pose
+
+
+@numba.njit(cache=True)
+def _copy(out: np.ndarray, i: int, blob: np.ndarray, start: int, end: int) -> int:
+    for b in range(start, end):
+        out[i] = blob[b]
+        i += 1
+    return i
+
+
+@numba.njit(cache=True)
+def encode_spheres(
+    ns: np.ndarray,
+    centers: np.ndarray,
+    rows: np.ndarray,
+    entities: np.ndarray,
+    entity_ends: np.ndarray,
+    spheres: np.ndarray,
+    sphere_ends: np.ndarray,
+    sphere_entity: np.ndarray,
+    sphere_center: np.ndarray,
+    out: np.ndarray,
+    bounds: np.ndarray,
+) -> int:
+    """The SceneUpdate of :class:`SpheresEncoding`'s entities at each of ``rows``, in ``out``.
+
+    The bytes of :func:`amex.log.messages.sphere`'s spheres in ``SceneEntity``'s of the
+    SDK, one entity after the other, each with the row's timestamp.
 
     Args:
-        ns: the timestamp [ns].
-        entity: the SceneEntity's frame_id and id (``SceneEntity(...).encode()``).
-        spheres: per sphere, its encoding and its centre (:func:`encode_vectors` with tag
-            ``Pose.position``, one row).
+        ns: per row, the timestamp [ns], shape (k,).
+        centers: per row, the spheres' centres [m], shape (k, c, 3).
+        rows: the rows to encode, shape (r,).
+        entities: :attr:`SpheresEncoding.entities`.
+        entity_ends: :attr:`SpheresEncoding.entity_ends`.
+        spheres: :attr:`SpheresEncoding.spheres`.
+        sphere_ends: :attr:`SpheresEncoding.sphere_ends`.
+        sphere_entity: :attr:`SpheresEncoding.sphere_entity`.
+        sphere_center: :attr:`SpheresEncoding.sphere_center`.
+        out: the buffer (large enough).
+        bounds: set to where each of ``rows``' messages starts and ends in ``out``, (r, 2).
+
+    Returns:
+        The bytes written.
     """
-    body = [timestamp_field(ns), entity]
-    for sphere, position in spheres:
-        pose = _field(_POSE, position + sphere.orientation)
-        body.append(_field(_SPHERES, pose + sphere.rest))
-    return _field(_ENTITIES, b"".join(body))
+    scratch = np.empty(1)
+    i = 0
+    n_spheres = len(sphere_entity)
+    for j in range(len(rows)):
+        r = rows[j]
+        seconds, nanos = ns[r] // 1_000_000_000, ns[r] % 1_000_000_000
+        stamp = 0
+        if seconds:
+            stamp += 1 + _varint_size(seconds)
+        if nanos:
+            stamp += 1 + _varint_size(nanos)
+        bounds[j, 0] = i
+        s = 0
+        for e in range(len(entity_ends)):
+            start = entity_ends[e - 1] if e else 0
+            body = 1 + _varint_size(stamp) + stamp + entity_ends[e] - start
+            first = s
+            while s < n_spheres and sphere_entity[s] == e:  # the entity's spheres' sizes
+                mid = sphere_ends[s, 0]
+                low = sphere_ends[s - 1, 1] if s else 0
+                center = centers[r, sphere_center[s]]
+                size, _ = _sphere_body(center, mid - low, sphere_ends[s, 1] - mid)
+                body += 1 + _varint_size(size) + size
+                s += 1
+            out[i] = 0x12  # SceneUpdate.entities
+            i = varint_field(out, i + 1, body)
+            i = _timestamp(out, i, seconds, nanos)
+            i = _copy(out, i, entities, start, entity_ends[e])
+            for t in range(first, s):
+                center = centers[r, sphere_center[t]]
+                mid = sphere_ends[t, 0]
+                low = sphere_ends[t - 1, 1] if t else 0
+                size, pose = _sphere_body(center, mid - low, sphere_ends[t, 1] - mid)
+                out[i] = 0x4A  # SceneEntity.spheres
+                i = varint_field(out, i + 1, size)
+                out[i] = 0x0A  # SpherePrimitive.pose
+                i = varint_field(out, i + 1, pose)
+                out[i] = _POSITION
+                out[i + 1] = _position_size(center)
+                i += 2
+                for c in range(3):
+                    if center[c] != 0.0:
+                        i = double_field(out, i, 0x09 + 8 * c, center[c], scratch)
+                i = _copy(out, i, spheres, low, sphere_ends[t, 1])
+        bounds[j, 1] = i
+    return i
 
 
-def positions(xyz: np.ndarray) -> list[bytes]:
-    """The ``Pose.position`` field of each row of ``xyz`` (k, 3)."""
-    encoded = encode_vectors(xyz, _POSITION)
-    out, i = [], 0
-    while i < len(encoded):
-        end = i + 2 + encoded[i + 1]
-        out.append(encoded[i:end])
-        i = end
-    return out
+@numba.njit(cache=True)
+def due_rows(
+    times: np.ndarray, keys: np.ndarray, last: np.ndarray, since: np.ndarray, out: np.ndarray
+) -> int:
+    """The rows where what the spheres' centres key moved by 1e-3 or more, or a second passed.
+
+    ``moved`` is the sum of the absolute differences of the row's ``keys`` and the last
+    drawn row's, left to right; a NaN counts as a move. The first row is due if ``since[0]``
+    is NaN (nothing drawn yet).
+
+    Args:
+        times: per row, its time [s], shape (k,).
+        keys: per row, the values that count as motion (goal, then the obstacles if they
+            move), shape (k, K).
+        last: the last drawn row's keys, updated here, shape (K,).
+        since: ``[the last drawn row's time]`` (NaN: none yet), updated here, shape (1,).
+        out: set to the due rows, in order, shape (k,).
+
+    Returns:
+        How many rows are due.
+    """
+    n = 0
+    for r in range(len(times)):
+        t = times[r]
+        if not np.isnan(since[0]) and t < since[0] + 1.0:
+            moved = 0.0
+            for c in range(keys.shape[1]):
+                moved += abs(keys[r, c] - last[c])
+            if moved < 1e-3:
+                continue
+        last[:] = keys[r]
+        since[0] = t
+        out[n] = r
+        n += 1
+    return n

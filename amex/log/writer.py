@@ -367,9 +367,11 @@ class EpisodeLogger:
             plans = {i: scene.plan_update(times[i], kept[i].plan) for i in drawn}
             world_log, path_log = scene.world.base.log, scene.path.base.log
             plan_log, reference_log = scene.plan.base.log, scene.reference.base.log
-            goals = batch.goal
+            worlds = scene.world_updates(
+                times, batch.ns[:count], batch.goal[:count], [step.obstacles for step in kept]
+            )
             for i, (t, tcp, out) in enumerate(zip(times, encoded.tcps, steps, strict=True)):
-                update = scene.world_update(t, goals[i], kept[i].obstacles)
+                update = worlds.get(i)
                 if update is not None:
                     out.append((world_log, update))
                 if i in plans:

@@ -1,5 +1,6 @@
 """The logs' own protobuf encoders against the SDK's objects (the oracle): the same bytes."""
 
+import foxglove
 import numpy as np
 import pytest
 from foxglove.messages import JointState, JointStates, Point3, SceneEntity, SceneUpdate
@@ -7,6 +8,7 @@ from foxglove.messages import JointState, JointStates, Point3, SceneEntity, Scen
 from amex.log import messages as M
 from amex.log import scene_wire as W
 from amex.log.frames import LinkTransforms, sim_stamp
+from amex.log.scene import SceneChannels
 from amex.log.wire import encode_step, step_encoding
 
 
@@ -70,44 +72,69 @@ def test_line_updates_equal_the_sdks(entity, thickness):
         assert W.line_update(encoding, ns, W.line_points(xyz)) == sdk.encode()
 
 
-def test_sphere_updates_equal_the_sdks():
-    rng = np.random.default_rng(2)
-    goal, dot = W.sphere_encoding(0.06, M.GOAL_COLOR), W.sphere_encoding(0.01, M.GOAL_DOT_COLOR)
-    radii = [0.02, 0.05]
-    obstacle = [W.sphere_encoding(2 * r, M.OBSTACLE_COLOR) for r in radii]
-    goal_entity = SceneEntity(frame_id="world", id="goal").encode()
-    obstacle_entity = SceneEntity(frame_id="world", id="obstacles").encode()
-    for t in _times(rng):
-        g = rng.normal(size=3)
-        g[rng.random(3) < 0.3] = 0.0
-        obstacles = rng.normal(size=(2, 3))
-        obstacles[0, 1] = 0.0
-        stamp, ns = sim_stamp(t), round(t * 1e9)
-        sdk = SceneUpdate(
-            entities=[
-                SceneEntity(
-                    timestamp=stamp,
-                    frame_id="world",
-                    id="goal",
-                    spheres=[M.sphere(g, 0.06, M.GOAL_COLOR), M.sphere(g, 0.01, M.GOAL_DOT_COLOR)],
-                ),
-                SceneEntity(
-                    timestamp=stamp,
-                    frame_id="world",
-                    id="obstacles",
-                    spheres=[
-                        M.sphere(c, 2 * r, M.OBSTACLE_COLOR)
-                        for c, r in zip(obstacles.tolist(), radii, strict=True)
-                    ],
-                ),
-            ]
-        ).encode()
-        (center,) = W.positions(g[None])
-        ours = W.spheres_entity(ns, goal_entity, [(goal, center), (dot, center)])
-        ours += W.spheres_entity(
-            ns, obstacle_entity, list(zip(obstacle, W.positions(obstacles), strict=True))
+def _world_sdk(t, goal, obstacles, radii):
+    """``/scene/world``'s message built as the SDK's objects (the oracle)."""
+    stamp = sim_stamp(t)
+    entities = [
+        SceneEntity(
+            timestamp=stamp,
+            frame_id="world",
+            id="goal",
+            spheres=[M.sphere(goal, 0.06, M.GOAL_COLOR), M.sphere(goal, 0.01, M.GOAL_DOT_COLOR)],
         )
-        assert ours == sdk
+    ]
+    if len(radii):
+        pairs = zip(obstacles, radii, strict=True)
+        spheres = [M.sphere(c, 2 * r, M.OBSTACLE_COLOR) for c, r in pairs]
+        entities.append(
+            SceneEntity(timestamp=stamp, frame_id="world", id="obstacles", spheres=spheres)
+        )
+    return SceneUpdate(entities=entities).encode()
+
+
+def _scene(radii, *, move=True):
+    return SceneChannels(
+        foxglove.Context(), np.zeros((2, 3)), np.asarray(radii, dtype=float),
+        obstacles_move=move, method="amex", max_line_points=100,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("radii", [[0.02, 0.05], [0.1], []])
+def test_sphere_updates_equal_the_sdks(radii):
+    rng = np.random.default_rng(2)
+    times = sorted(_times(rng))
+    k = len(times)
+    goals = rng.normal(size=(k, 3))
+    goals[rng.random((k, 3)) < 0.3] = 0.0
+    goals[2] = -0.0
+    obstacles = rng.normal(size=(k, len(radii), 3)) * 300  # centres of up to 2-byte lengths
+    obstacles[rng.random(obstacles.shape) < 0.2] = 0.0
+    goals[5, 1] = np.nan
+    scene = _scene(radii)
+    stamps = [round(t * 1e9) for t in times]
+    updates = scene.world_updates(times, stamps, goals, list(obstacles))
+    assert sorted(updates) == list(range(k))  # every step moved (or held a NaN)
+    for i, t in enumerate(times):
+        assert updates[i] == _world_sdk(t, goals[i].tolist(), obstacles[i].tolist(), radii)
+
+
+def test_a_world_update_is_due_when_the_goal_or_an_obstacle_moved_a_millimetre_or_each_second():
+    goal, obstacle = np.array([0.5, 0.1, 0.3]), np.array([[0.2, 0.0, 0.4]])
+    x = np.array([1.0, 0.0, 0.0])
+    times = [0.0, 0.01, 0.02, 0.03, 0.04, 1.02, 1.04, 1.05]
+    goals = [goal, goal + 4e-4 * x, goal + 9e-4 * x, *[goal + 1.5e-3 * x] * 5]
+    moved = [obstacle] * 7 + [obstacle + 2e-3 * x]
+    stamps = [round(t * 1e9) for t in times]
+    due = list(_scene([0.05]).world_updates(times, stamps, goals, moved))
+    # 0.01, 0.02: 0.4 and 0.9 mm since 0.00; 0.03: 1.5 mm; 1.04: a second since 0.03; 1.05:
+    # the obstacle moved 2 mm
+    assert due == [0, 3, 6, 7]
+    still = _scene([0.05], move=False)  # obstacles that do not move do not count
+    assert list(still.world_updates(times, stamps, goals, moved)) == [0, 3, 6]
+    split = _scene([0.05])  # a batch at a time: the same steps
+    first = split.world_updates(times[:3], stamps[:3], goals[:3], moved[:3])
+    rest = split.world_updates(times[3:], stamps[3:], goals[3:], moved[3:])
+    assert [*first, *(3 + i for i in rest)] == due
 
 
 def test_varints_and_timestamps_match_the_sdk():
