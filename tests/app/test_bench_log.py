@@ -48,21 +48,29 @@ def messages(path):
         return [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages()]
 
 
-def test_the_replaying_recorder_writes_the_logs_messages_as_the_steps_come(tmp_path):
-    config = RunConfig(task=3, max_time=0.3)
+@pytest.mark.parametrize("batch", [None, 1])
+def test_the_replaying_recorder_writes_the_logs_messages_in_the_episode(tmp_path, batch):
+    config = RunConfig(task=3, max_time=0.6)
     config.method = METHODS["amex"].config_class()
     run = setup(config, prepare(config))
     path = tmp_path / "episode.mcap"
     logged = run_one(config, prepare(config), 0, path)
-    recorder = ReplayRecorder(path, tmp_path / "again.mcap")
+    recorder = ReplayRecorder(path, tmp_path / "again.mcap", batch)
     logs = []
     record = recorder.record
-    recorder.record = lambda step: logs.append((step.t, recorder._next)) or record(step)
+    recorder.record = lambda step: logs.append(recorder._next) or record(step)
     replayed = run_setup_with(run, 0, recorder)
     same = [key for key in logged.as_row() if "compute" not in key]  # timing columns aside
     assert [replayed.as_row()[k] for k in same] == [logged.as_row()[k] for k in same]
     again = read_log(tmp_path / "again.mcap")
     assert again.outcome == read_log(path).outcome and not again.damage
     assert sorted(messages(tmp_path / "again.mcap")) == sorted(messages(path))
-    # each step wrote what the log stamps up to its time, not all at the end
-    assert len(logs) > 20 and logs[0][1] < logs[-1][1] < len(messages(path))
+    # what was written before each step: at every step, or a batch of 50 steps at a time
+    written = sorted(set(logs))
+    assert len(logs) > 50 and 0 < logs[-1] < len(messages(path))
+    if batch == 1:
+        assert len(written) == len(logs)
+    else:
+        assert written == [0, logs[50]] and logs[49] == 0 < logs[50]
+    with pytest.raises(ValueError, match="valid: an integer >= 1"):
+        ReplayRecorder(path, tmp_path / "x.mcap", 0)
