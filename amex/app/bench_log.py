@@ -83,9 +83,10 @@ def sdk_floor(path: Path, out: Path) -> float:
     metadata records, the close. What ``log=full`` spends beyond this is amex's: taking the
     steps' values, encoding the messages, the scene, and the caches they cool.
     """
-    messages, records = _read_log(path)
+    messages, records, compression = _read_log(path)
     cpu = time.thread_time_ns()
-    context, writer, channels = _open_again(out, messages)  # the context lives to the close
+    # the context lives to the close
+    context, writer, channels = _open_again(out, messages, compression)
     for name, values in records[:1]:  # the header (the rest are written last, as the logs do)
         writer.write_metadata(name, values)
     for _, channel, message in messages:
@@ -99,25 +100,35 @@ def sdk_floor(path: Path, out: Path) -> float:
     return (time.thread_time_ns() - cpu) * 1e-9
 
 
-def _read_log(path: Path) -> tuple[list[Any], list[tuple[str, dict[str, str]]]]:
-    """A log's ``(schema, channel, message)`` in the order written, and its metadata records."""
+def _read_log(path: Path) -> tuple[list[Any], list[tuple[str, dict[str, str]]], str]:
+    """A log's ``(schema, channel, message)`` in the order written, records and compression.
+
+    The metadata records in their order, and the chunks' compression (a key of
+    :data:`amex.log.writer.COMPRESSIONS`).
+    """
     from mcap.reader import make_reader
 
     with open(path, "rb") as f:
         reader = make_reader(f)
         messages = list(reader.iter_messages(log_time_order=False))
         records = [(m.name, m.metadata) for m in reader.iter_metadata()]
-    return messages, records
+        summary = reader.get_summary()
+    chunks = summary.chunk_indexes if summary is not None else []
+    compression = (chunks[0].compression if chunks else "") or "none"
+    return messages, records, compression
 
 
-def _open_again(out: Path, messages: list[Any]) -> tuple[Any, Any, dict[int, Any]]:
-    """The SDK's context, MCAP writer (the logs' options) and channels of ``messages``."""
+def _open_again(
+    out: Path, messages: list[Any], compression: str
+) -> tuple[Any, Any, dict[int, Any]]:
+    """The SDK's context, MCAP writer (a log's options) and channels of ``messages``."""
     import foxglove
 
     from amex.log.writer import write_options
 
     context = foxglove.Context()
-    writer = foxglove.open_mcap(out, context=context, writer_options=write_options())
+    options = write_options(compression)
+    writer = foxglove.open_mcap(out, context=context, writer_options=options)
     channels: dict[int, Any] = {}
     for schema, channel, _ in messages:
         if channel.id not in channels:
@@ -149,7 +160,7 @@ class ReplayRecorder:
     def __init__(self, log: Path, out: Path, batch: int | None = None) -> None:
         from amex.log.writer import BATCH
 
-        messages, self._records = _read_log(log)
+        messages, self._records, self._compression = _read_log(log)
         order = sorted(range(len(messages)), key=lambda i: messages[i][2].log_time)  # stable
         self._messages = [messages[i] for i in order]
         self._times = [m.log_time for _, _, m in self._messages]
@@ -166,7 +177,7 @@ class ReplayRecorder:
 
     def _start(self) -> None:
         """The SDK's context, file and channels, and the header record."""
-        self._open = _open_again(self._out, self._messages)
+        self._open = _open_again(self._out, self._messages, self._compression)
         channels = self._open[2]
         self._logs = [channels[channel.id].log for _, channel, _ in self._messages]
         for name, record in self._records[:1]:

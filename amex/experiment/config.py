@@ -27,6 +27,8 @@ from amex.sim.scenario import TASKS, ScenarioConfig
 from amex.sim.simulation import MismatchConfig
 
 LOG_LEVELS = ("none", "full")
+#: How ``log=full`` compresses its chunks (:data:`amex.log.writer.COMPRESSIONS`): lz4 first.
+LOG_COMPRESSIONS = ("lz4", "zstd", "none")
 MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
 #: Episodes of one run: more is days of CPU and its bookkeeping would not fit in memory; a larger
 #: study splits over seeds or shards.
@@ -117,6 +119,10 @@ class RunConfig:
         implementation: ``ours`` or ``original``: amex, dmp and cr as the authors' harness ran
             them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
         log: ``none`` or ``full`` (one MCAP file per episode).
+        log_compression: how a log's chunks are compressed: ``lz4`` (the default: ~1 point of
+            an episode less than zstd, files ~20 % larger), ``zstd`` (the smallest files) or
+            ``none`` (~2.5 points less, files ~2.5 times larger); docs/logs.md. It changes no
+            episode.
         shards: split the ``episodes`` environments over this many runs
         (:mod:`amex.experiment.shards`).
         shard: which of them this run executes, ``0 <= shard < shards``: the environments
@@ -148,6 +154,7 @@ class RunConfig:
     std_ddof: int = field(default=0, metadata=limits(ge=0, le=1))
     implementation: str = "ours"
     log: str = "none"
+    log_compression: str = "lz4"
     shards: int = field(default=1, metadata=limits(ge=1))
     shard: int = 0
 
@@ -206,6 +213,8 @@ def validate(config: RunConfig) -> None:
     ShardSpec(config.shard, config.shards, config.episodes)  # raises for a bad split
     if config.log not in LOG_LEVELS:
         raise ConfigError.invalid("log", config.log, LOG_LEVELS)
+    if config.log_compression not in LOG_COMPRESSIONS:
+        raise ConfigError.invalid("log_compression", config.log_compression, LOG_COMPRESSIONS)
     if config.implementation not in IMPLEMENTATIONS:
         raise ConfigError.invalid("implementation", config.implementation, IMPLEMENTATIONS)
     metrics = {"plan.metric": config.plan.metric, "controller.metric": config.controller.metric}

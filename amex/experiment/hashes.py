@@ -1,12 +1,13 @@
 """The hashes of a run: which configuration and which code computed its episodes.
 
 * :func:`config_hash`: everything that determines an episode: the configuration (task, method and
-  its parameters, scenes, plan, controller, rates, seed; not ``episodes``, ``log``, ``shards`` or
-  ``shard``, which say which environments a run executes, not what they compute) and the code
-  (:func:`code_hash`). A run resumes by skipping the environments recorded under the same hash.
-  The method's parameters are hashed in the scene's units (:mod:`amex.core.scaling`) and the
-  robot's start pose as resolved from the catalogue, so a value written another way hashes the
-  same; an option added later is left out while it has its neutral value (``_ADDED_OPTIONS``).
+  its parameters, scenes, plan, controller, rates, seed; not ``episodes``, ``log``,
+  ``log_compression``, ``shards`` or ``shard``, which say which environments a run executes and
+  how it logs them, not what they compute) and the code (:func:`code_hash`). A run resumes by
+  skipping the environments recorded under the same hash. The method's parameters are hashed in
+  the scene's units (:mod:`amex.core.scaling`) and the robot's start pose as resolved from the
+  catalogue, so a value written another way hashes the same; an option added later is left out
+  while it has its neutral value (``_ADDED_OPTIONS``).
 * :func:`scene_hash`: the same without task and method, and with only the code all methods share
   (amex without ``amex/methods/``): rows of different methods with equal scene hashes ran on
   identical environments, under one controller and one scoring (paired comparisons).
@@ -70,7 +71,7 @@ NUMERIC_DISTRIBUTIONS = (
 )
 _AMEX_ROOT = Path(__file__).resolve().parents[1]  # the amex package
 # which rows, not what they hold; std_ddof: how the summary aggregates them
-_NOT_RESULTS = ("episodes", "log", "shards", "shard", "std_ddof")
+_NOT_RESULTS = ("episodes", "log", "log_compression", "shards", "shard", "std_ddof")
 # Options added after runs were recorded, with the value that reproduces the behaviour before
 # them: at that value they are left out of the hashed configuration, which therefore reads as it
 # did before the option existed (the code digest beside it changes with any change of the code

@@ -135,6 +135,8 @@ class EpisodeSetup:
         gains: the inner controller's gains, the method's task gains included.
         loop: the episode loop's rates and stopping rules.
         world: perception, prediction, mismatch and disturbance compensation of the episode.
+        log_compression: how a log of an episode compresses its chunks (``lz4``, ``zstd``,
+            ``none``; :func:`amex.log.writer.write_options`).
     """
 
     context: RunContext
@@ -147,6 +149,7 @@ class EpisodeSetup:
     gains: OSCGains
     loop: LoopConfig
     world: dict[str, Any]
+    log_compression: str = "lz4"
 
 
 def setup(config: RunConfig, context: RunContext) -> EpisodeSetup:
@@ -167,6 +170,7 @@ def setup(config: RunConfig, context: RunContext) -> EpisodeSetup:
             "mismatch": config.mismatch,
             "disturbance": config.controller.compensation(),
         },
+        log_compression=config.log_compression,
     )
 
 
@@ -179,7 +183,8 @@ def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> Ep
     context = setup.context
     method, scenario = _method(setup), _scenario(setup, env)  # before the log's file is made
     metadata = {"task": setup.task, "method": method.name, "env": env, "seed": setup.seed}
-    with EpisodeLogger(log_path, context.robot, context.plan, scenario, metadata) as logger:
+    args = (log_path, context.robot, context.plan, scenario, metadata)
+    with EpisodeLogger(*args, compression=setup.log_compression) as logger:
         return _episode(setup, method, scenario, logger)
 
 

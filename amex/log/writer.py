@@ -52,10 +52,11 @@ cold (docs/results/speed.md gives the measured cost).
 Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
 finished log never has the suffix, and no existing file is ever overwritten: an existing
 ``<path>`` or ``<path>.part`` (a rerun, or a resumed run's interrupted episode) is renamed to
-``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, zstd-compressed: after SIGKILL at
-most the last chunk (~0.5 s of simulation) and the steps kept since the last batch (< 0.5 s)
-are lost, and :func:`amex.log.reader.read_log` recovers the rest. A write that fails stops the
-episode (:class:`~amex.core.errors.WriteError`) at the end of the batch it was in. The log
+``<stem>.old<n>...`` with a warning. Chunks are 64 KiB, lz4-compressed (``log_compression``:
+zstd or none): after SIGKILL at most the last chunk (~0.5 s of simulation) and the steps kept
+since the last batch (< 0.5 s) are lost, and :func:`amex.log.reader.read_log` recovers the
+rest. A write that fails stops the episode (:class:`~amex.core.errors.WriteError`) at the end
+of the batch it was in. The log
 is closed in ``__exit__`` and on SIGTERM (SLURM's way of stopping a job), the kept steps
 written first: a handler is installed while the log is open (main thread only), finishes the
 file, restores the previous handler and re-delivers the signal to it.
@@ -97,18 +98,35 @@ if TYPE_CHECKING:
 
 CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can lose
 PART_SUFFIX = ".part"
-COMPRESSION = MCAPCompression.Zstd
-COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~1 % of the size for ~20 % more time
+#: The chunks' compressions (``log_compression``): lz4 is the default. Measured on 2026-12-07
+#: (Zen 4; the DMP and AMEX on Task 1, 2 rounds of 6 environments): zstd costs ~1 point of an
+#: episode more than lz4 for files ~17-20 % smaller; none ~1.5 points less than lz4, files ~2.1
+#: times larger than lz4's.
+COMPRESSIONS: dict[str, MCAPCompression | None] = {
+    "lz4": MCAPCompression.Lz4,
+    "zstd": MCAPCompression.Zstd,
+    "none": None,
+}
+COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~3-5 % of the size for ~20 % more time
 BATCH = 50  # outer steps kept before they are written (0.5 s of simulation at 100 Hz)
 
 
-def write_options() -> MCAPWriteOptions:
-    """The SDK's MCAP options of every log: zstd chunks of :data:`CHUNK_SIZE`, no threads."""
+def write_options(compression: str = "lz4") -> MCAPWriteOptions:
+    """The SDK's MCAP options of a log: chunks of :data:`CHUNK_SIZE`, no threads.
+
+    Args:
+        compression: a key of :data:`COMPRESSIONS` (zstd at :data:`COMPRESSION_LEVEL`).
+
+    Raises:
+        ValueError: for another ``compression``.
+    """
+    if compression not in COMPRESSIONS:
+        raise ValueError(f"invalid compression={compression!r}; valid: {', '.join(COMPRESSIONS)}")
     return MCAPWriteOptions(
-        compression=COMPRESSION,
+        compression=COMPRESSIONS[compression],
         chunk_size=CHUNK_SIZE,
         compression_threads=0,
-        compression_level=COMPRESSION_LEVEL,
+        compression_level=COMPRESSION_LEVEL if compression == "zstd" else 0,
         profile="",
     )
 
@@ -129,6 +147,7 @@ class EpisodeLogger:
             MCAP metadata record ``episode``.
         path_every: outer steps between updates of the executed-path and plan lines.
         max_line_points: plan lines are decimated to at most this many points.
+        compression: how the chunks are compressed, a key of :data:`COMPRESSIONS`.
     """
 
     def __init__(
@@ -141,7 +160,9 @@ class EpisodeLogger:
         *,
         path_every: int = 5,
         max_line_points: int = 100,
+        compression: str = "lz4",
     ) -> None:
+        options = write_options(compression)  # first: a bad value makes no file
         self.path = Path(path)
         self.part_path = self.path.with_name(self.path.name + PART_SUFFIX)
         for existing in (self.path, self.part_path):
@@ -164,7 +185,7 @@ class EpisodeLogger:
         self._context = foxglove.Context()
         try:
             self._writer = foxglove.open_mcap(
-                self.part_path, context=self._context, writer_options=write_options()
+                self.part_path, context=self._context, writer_options=options
             )
         except Exception as e:  # foxglove raises its own error types for I/O failures
             self._failures.detach()

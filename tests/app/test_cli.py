@@ -34,6 +34,7 @@ def _run(args, cwd):
         (["inner_hz=150", "outer_hz=100"], "inner_hz=150"),
         (["max_time=-1"], "max_time=-1"),
         (["foo=1"], "'foo'"),
+        (["log=full", "log_compression=gzip"], "log_compression='gzip'"),
         (["-m", "task=1,7"], "task=7"),
     ],
 )

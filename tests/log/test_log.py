@@ -75,6 +75,33 @@ def test_logged_episode_opens_with_the_indexed_reader_and_has_foxglove_schemas(l
     assert names[:4] == ["episode", "scenario", "robot", "log"] and names[-1] == "outcome"
 
 
+def test_each_compression_writes_the_same_messages_that_the_reader_reads_back(logged, tmp_path):
+    config, context, result, path = logged
+    with open(path, "rb") as f:
+        default = [(c.topic, m.log_time, m.data) for _, c, m in make_reader(f).iter_messages()]
+    for compression, recorded in (("lz4", "lz4"), ("zstd", "zstd"), ("none", "")):
+        config.log_compression = compression
+        again = tmp_path / f"{compression}.mcap"
+        try:
+            assert run_one(config, context, 0, again).as_row().keys() == result.as_row().keys()
+        finally:
+            config.log_compression = "lz4"
+        with open(again, "rb") as f:
+            reader = make_reader(f)
+            chunks = reader.get_summary().chunk_indexes
+            messages = [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages()]
+        assert chunks and {chunk.compression for chunk in chunks} == {recorded}
+        same = [m for m in messages if m[0] not in ("/episode",)]  # timing columns there
+        assert same == [m for m in default if m[0] not in ("/episode",)]
+        data = read_log(again)
+        assert not data.damage and data.outcome["final_distance"] == result.final_distance
+    with pytest.raises(ValueError, match="valid: lz4, zstd, none"):
+        EpisodeLogger(
+            tmp_path / "bad.mcap", context.robot, context.plan, None, {}, compression="gzip"
+        )
+    assert not list(tmp_path.glob("bad.mcap*"))
+
+
 def test_reader_gives_the_episode_back(logged):
     config, context, result, path = logged
     data = read_log(path)
