@@ -69,7 +69,7 @@ class SceneChannels:
         self._obstacles_move = obstacles_move
         self._max_line_points = max_line_points
         self._plan_rows: dict[int, np.ndarray | None] = {}  # plan length -> the rows drawn
-        self._path_points = np.empty((256, 3))
+        self._path_points = bytearray()  # the executed path's points, encoded as they come
         self._path_count = 0
         self._goal_entity = SceneEntity(frame_id=WORLD_FRAME, id="goal").encode()
         self._obstacle_entity = SceneEntity(frame_id=WORLD_FRAME, id="obstacles").encode()
@@ -168,12 +168,12 @@ class SceneChannels:
         return W.line_update(self._reference_line, round(t * 1e9), self._reference_points)
 
     def add_path_point(self, x: float, y: float, z: float) -> None:
-        """One more point of the executed TCP path (drawn at the next :meth:`publish_path`)."""
-        if self._path_count == len(self._path_points):
-            self._path_points = np.concatenate(
-                [self._path_points, np.empty_like(self._path_points)]
-            )
-        self._path_points[self._path_count] = x, y, z
+        """One more point of the executed TCP path (drawn at the next :meth:`publish_path`).
+
+        Encoded now and kept: a path update writes the points so far without encoding any again
+        (each point's bytes depend on it alone).
+        """
+        self._path_points += W.point_field(x, y, z)
         self._path_count += 1
 
     def publish_path(self, t: float) -> None:
@@ -186,9 +186,7 @@ class SceneChannels:
         """The executed TCP path so far, ``/scene/path``'s message (None before a first point)."""
         if not self._path_count:
             return None
-        ns = round(t * 1e9)
-        points = W.line_points(self._path_points[: self._path_count])
-        return W.line_update(self._path_line, ns, points)
+        return W.line_update(self._path_line, round(t * 1e9), self._path_points)
 
     def plan_update(self, t: float, plan: Any) -> bytes | None:
         """The method's current plan as ``/scene/plan``'s message, if it is an ``(k, >=3)`` array.

@@ -18,6 +18,7 @@ Wire layout (field numbers of the Foxglove schemas): ``SceneUpdate.entities`` (2
 
 from __future__ import annotations
 
+import struct
 from typing import NamedTuple
 
 import numba
@@ -116,7 +117,7 @@ def line_encoding(entity: str, color: Color, thickness: float) -> LineEncoding:
     )
 
 
-def line_update(encoding: LineEncoding, ns: int, points: bytes) -> bytes:
+def line_update(encoding: LineEncoding, ns: int, points: bytes | bytearray) -> bytes:
     """The SceneUpdate of :func:`amex.log.messages.line_update` with ``points`` encoded.
 
     Args:
@@ -132,6 +133,16 @@ def line_update(encoding: LineEncoding, ns: int, points: bytes) -> bytes:
 def line_points(xyz: np.ndarray) -> bytes:
     """The points of a line (rows of ``xyz``, (k, >= 3)) as ``LinePrimitive.points`` fields."""
     return encode_vectors(xyz, _POINT)
+
+
+_POINT_FIELD = struct.Struct("<BBBdBdBd")
+
+
+def point_field(x: float, y: float, z: float) -> bytes:
+    """One point of a line, ``line_points([[x, y, z]])``: one ``struct`` pack if none is zero."""
+    if x and y and z:  # (a NaN is written, as a zero is not: proto3 omits the defaults)
+        return _POINT_FIELD.pack(_POINT, 27, 0x09, x, 0x11, y, 0x19, z)
+    return line_points(np.array([[x, y, z]], dtype=float))
 
 
 class SphereEncoding(NamedTuple):

@@ -72,6 +72,27 @@ def test_line_updates_equal_the_sdks(entity, thickness):
         assert W.line_update(encoding, ns, W.line_points(xyz)) == sdk.encode()
 
 
+def test_a_point_field_is_the_points_of_a_line_of_one_point():
+    rng = np.random.default_rng(3)
+    specials = [0.0, -0.0, np.nan, np.inf, -np.inf, 1e-300, -2.5]
+    rows = [rng.choice(specials, 3) for _ in range(200)] + list(rng.normal(size=(50, 3)))
+    for x, y, z in rows:
+        assert W.point_field(x, y, z) == W.line_points(np.array([[x, y, z]])), (x, y, z)
+
+
+def test_the_executed_path_is_the_line_of_its_points_so_far():
+    scene = _scene([0.05])
+    assert scene.path_update(0.0) is None
+    rng = np.random.default_rng(4)
+    xyz = rng.normal(size=(30, 3))
+    xyz[3, 1] = 0.0
+    for k, (x, y, z) in enumerate(xyz.tolist(), start=1):
+        scene.add_path_point(x, y, z)
+        if k in (1, 4, 30):
+            expected = W.line_update(scene._path_line, 10**9 * k, W.line_points(xyz[:k]))
+            assert scene.path_update(float(k)) == expected
+
+
 def _world_sdk(t, goal, obstacles, radii):
     """``/scene/world``'s message built as the SDK's objects (the oracle)."""
     stamp = sim_stamp(t)
