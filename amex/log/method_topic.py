@@ -12,9 +12,10 @@ the reader gives as None.
 
 :meth:`MethodTopic.encode` writes a step through a recipe made once per combination of keys and
 value types: one converter per key, the common types' without a type test (~1.5 us for AMEX's
-15 numbers; their shortest texts took ~15 us). Where every value is a number (the DMP's steps;
-AMEX's carry arrays, CR's texts), the recipe is one ``struct`` pack of ``t`` and all the fields,
-keys included: the same bytes as the converters' concatenation.
+15 numbers; their shortest texts took ~15 us). Where every value is a number (the DMP's steps),
+the recipe is one ``struct`` pack of ``t`` and all the fields, keys included: the same bytes as
+the converters' concatenation. Where every value is a number, a flag, a text or a small array
+(AMEX's steps, CR's), it is one pack per the arrays' sizes and the texts' lengths.
 :meth:`MethodTopic.reference_encode` converts each value by the general rule (:func:`_encoded`),
 the oracle (tests/log/test_method_topic.py compares them).
 """
@@ -38,6 +39,9 @@ _PROTO_KIND = {"number": "double", "boolean": "bool", "string": "string", "array
 
 Converter = Callable[[Any], bytes]  # a value's field (key included), b"": absent
 _NUMBER_TYPES = (float, np.float64, int, np.int64)  # written as doubles without a type test
+# The forms of a value in a one-pack message (Recipe.fields): a double, a packed field of
+# doubles, a flag's byte, a text's UTF-8 bytes.
+_NUMBER, _ARRAY, _FLAG, _TEXT = range(4)
 
 
 class Recipe(NamedTuple):
@@ -49,18 +53,22 @@ class Recipe(NamedTuple):
         packed: where every value is a number, the message's ``struct`` (``t``, then each
             field's key and double), else None.
         arguments: the pack's arguments with the keys in place (``t`` and the values as 0.0).
-        fields: per value, its field's key and whether it is an array.
-        vectors: where every value is a number or an array (AMEX's steps), the message's
-            ``struct`` per sizes of the arrays (each a packed field of doubles), made at the
-            first step of those sizes; else None.
+        fields: per value, its field's key and its form in one pack (``_NUMBER``, ``_ARRAY``,
+            ``_FLAG``, ``_TEXT``).
+        vectors: where every value is a number, an array, a flag or a text (AMEX's, CR's
+            steps), the message's ``struct`` and its arguments' template per byte sizes of the
+            arrays (each a packed field of doubles) and texts, made at the first step of those
+            sizes; else None.
+        sized: the indices of the arrays and texts among the values, for :attr:`vectors`.
     """
 
     converters: tuple[Converter, ...]
     arrays: tuple[int, ...]
     packed: struct.Struct | None
     arguments: tuple[Any, ...]
-    fields: tuple[tuple[bytes, bool], ...] = ()
-    vectors: dict[tuple[int, ...], tuple[struct.Struct, list[bytes]]] | None = None
+    fields: tuple[tuple[bytes, int], ...] = ()
+    vectors: dict[tuple[int, ...], tuple[struct.Struct, tuple[Any, ...]]] | None = None
+    sized: tuple[int, ...] = ()
 
 
 #: A step's values to encode: their recipe and the values (:meth:`MethodTopic.capture`).
@@ -217,68 +225,90 @@ class MethodTopic:
             kinds[key] == "number" and value_type in _NUMBER_TYPES
             for key, value_type in zip(keys, types, strict=True)
         )
-        fields = tuple(
-            (self._keys[key], value_type is np.ndarray)
-            for key, value_type in zip(keys, types, strict=True)
-        )
+        forms = [_form(kinds[key], value_type) for key, value_type in zip(keys, types, strict=True)]
         if not numbers:
-            vectors = all(
-                (kinds[key] == "number" and value_type in _NUMBER_TYPES)
-                or (kinds[key] == "array" and value_type is np.ndarray)
-                for key, value_type in zip(keys, types, strict=True)
-            )
-            return Recipe(converters, arrays, None, (), fields, {} if vectors else None)
+            if None in forms:  # some value has no form in one pack: the converters
+                return Recipe(converters, arrays, None, ())
+            fields = tuple(
+                (self._keys[key], form) for key, form in zip(keys, forms, strict=True)
+                if form is not None
+            )  # fmt: skip
+            sized = tuple(i for i, form in enumerate(forms) if form in (_ARRAY, _TEXT))
+            return Recipe(converters, arrays, None, (), fields, {}, sized)
         pairs = [(b"\x09", 0.0)] + [(self._keys[key], 0.0) for key in keys]
         packed = struct.Struct("<" + "".join(f"{len(key)}sd" for key, _ in pairs))
         arguments = tuple(x for pair in pairs for x in pair)
-        return Recipe(converters, arrays, packed, arguments, fields)
+        return Recipe(converters, arrays, packed, arguments)
+
+
+def _form(kind: str, value_type: type) -> int | None:
+    """A value's form in a one-pack message (:data:`_NUMBER`, ...), None if it has none."""
+    if kind == "number" and value_type in _NUMBER_TYPES:
+        return _NUMBER
+    if kind == "array" and value_type is np.ndarray:
+        return _ARRAY
+    if kind == "boolean" and value_type is bool:
+        return _FLAG
+    if kind == "string" and value_type is str:
+        return _TEXT
+    return None
 
 
 def _vector_pack(recipe: Recipe, t: float, values: list[Any]) -> bytes | None:
-    """The message of numbers and arrays as one ``struct`` pack (None: the converters' case).
+    """The message of numbers, arrays, flags and texts as one ``struct`` pack.
 
-    None where an array is not (k,) of at most :data:`MAX_ARRAY` numbers (the converters then
-    leave it out). The same bytes as the converters': ``t``, then each number's key and double,
-    each array's key, byte length and doubles (``astype("<f8")``: an int array's as doubles).
+    None (the converters' case) where an array is not (k,) of at most :data:`MAX_ARRAY`
+    numbers (the converters then leave it out). The same bytes as the converters': ``t``, then
+    each number's key and double, each array's key, byte length and doubles
+    (``astype("<f8").tobytes()``: an int array's as doubles), each flag's key and byte, each
+    text's key, byte length and UTF-8 bytes. Arrays and texts go into the pack as bytes, so the
+    pack has two arguments per field whatever the arrays' sizes.
     """
+    values = list(values)
     sizes = []
-    for i in recipe.arrays:
+    for i in recipe.sized:  # the arrays and texts, in order
         value = values[i]
-        if value.ndim != 1 or value.size > MAX_ARRAY or value.dtype.kind not in "fiu":
-            return None
-        sizes.append(value.size)
-    key = tuple(sizes)
+        if type(value) is str:
+            data = value.encode()
+        else:
+            if value.ndim != 1 or value.size > MAX_ARRAY or value.dtype.kind not in "fiu":
+                return None
+            data = value.astype("<f8", copy=False).tobytes()
+        values[i] = data
+        sizes.append(len(data))
     vectors = recipe.vectors
     assert vectors is not None
+    key = tuple(sizes)
     try:
-        packer, prefixes = vectors[key]
+        packer, template = vectors[key]
     except KeyError:
-        packer, prefixes = vectors[key] = _vector_packer(recipe.fields, key)
-    arguments: list[Any] = [b"\x09", t]
-    for prefix, (_, is_array), value in zip(prefixes, recipe.fields, values, strict=True):
-        arguments.append(prefix)
-        if is_array:
-            arguments += value.tolist()
-        else:
-            arguments.append(value)
+        packer, template = vectors[key] = _vector_packer(recipe.fields, key)
+    arguments = list(template)
+    arguments[1] = t
+    arguments[3::2] = values
     return packer.pack(*arguments)
 
 
 def _vector_packer(
-    fields: tuple[tuple[bytes, bool], ...], sizes: tuple[int, ...]
-) -> tuple[struct.Struct, list[bytes]]:
-    """The ``struct`` of :func:`_vector_pack` for arrays of ``sizes``, and each field's prefix."""
-    layout, prefixes, size = ["<1sd"], [], iter(sizes)
-    for key, is_array in fields:
-        if is_array:
+    fields: tuple[tuple[bytes, int], ...], sizes: tuple[int, ...]
+) -> tuple[struct.Struct, tuple[Any, ...]]:
+    """The ``struct`` of :func:`_vector_pack` for arrays and texts of ``sizes`` bytes.
+
+    And its arguments' template: ``t``'s key, then per field its prefix (its key, and the byte
+    length of an array or text), each followed by a place for the value.
+    """
+    layout, template, size = ["<1sd"], [b"\x09", 0.0], iter(sizes)
+    for key, form in fields:
+        if form in (_ARRAY, _TEXT):
             n = next(size)
-            prefix = key + P.varint(8 * n)
-            layout.append(f"{len(prefix)}s{n}d")
+            prefix = key + P.varint(n)
+            value = f"{n}s"
         else:
             prefix = key
-            layout.append(f"{len(key)}sd")
-        prefixes.append(prefix)
-    return struct.Struct("".join(layout)), prefixes
+            value = "?" if form == _FLAG else "d"
+        layout.append(f"{len(prefix)}s{value}")
+        template += [prefix, None]
+    return struct.Struct("".join(layout)), tuple(template)
 
 
 def _absent(value: Any) -> bytes:

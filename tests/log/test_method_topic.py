@@ -45,6 +45,12 @@ def _variants(rng):
     yield {"iters": np.int64(-3), "s": math.inf, "delta_g": np.float64(math.nan), "steps": 7}
     yield {"s": 0.25, "delta_g": -0.0, "steps": 2**53 + 1, "iters": 4.5}
     yield {"s": 0.25, "steps": True}  # a flag where a number is: not one pack
+    # flags and texts in one pack (CR's steps): multi-byte, empty, 1- and 2-byte lengths
+    yield {**_first(), "mode": "ü" * 64, "converged": False}  # 128 bytes
+    yield {**_first(), "mode": "x" * 127}
+    yield {**_first(), "mode": "x" * 300}
+    yield {**_first(), "mode": ""}
+    yield {**_first(), "converged": np.bool_(True)}  # numpy's flag: the converters
     yield {}
 
 
@@ -165,9 +171,23 @@ def test_numbers_and_arrays_are_one_pack_with_the_general_rules_bytes():
             assert fast == topic.reference_encode(t, internals), internals
             assert decoder.decode(fast)["t"] == t
     recipe, _ = topic.capture(first)
-    assert recipe.packed is None and recipe.vectors is not None and (6, 6) in recipe.vectors
+    assert recipe.packed is None and recipe.vectors is not None
+    assert (48, 48) in recipe.vectors  # the arrays' byte sizes
     read = decoder.decode(topic.encode(1.0, variants[3]))
     assert read["y_star"] == [0.0, 1.0, 2.0, 3.0] and read["yd_star"] == [float(2**60), -1.0]
+
+
+def test_crs_steps_are_one_pack_per_length_of_their_texts():
+    first = {"mode": "shrink", "steps": 40, "iterations": 3, "cost": 0.5, "converged": True}
+    topic = MethodTopic()
+    decoder = FlatDecoder(topic.schema(0.0, first).descriptor_set(), "amex.MethodInternals")
+    for t, mode in enumerate(("shrink", "tail", "hold", "tail")):
+        step = {**first, "mode": mode, "converged": t % 2 == 0}
+        fast = topic.encode(float(t), step)
+        assert fast == topic.reference_encode(float(t), step)
+        assert decoder.decode(fast)["mode"] == mode
+    recipe, _ = topic.capture(first)
+    assert recipe.packed is None and sorted(recipe.vectors) == [(4,), (6,)]
 
 
 def test_a_snapshot_keeps_the_steps_values_and_computes_nothing():
