@@ -120,9 +120,9 @@ class RunConfig:
             them (:data:`amex.methods.ORIGINAL_METHODS`); other methods have only one.
         log: ``none`` or ``full`` (one MCAP file per episode).
         log_compression: how a log's chunks are compressed: ``lz4`` (the default: ~1 point of
-            an episode less than zstd, files ~20 % larger), ``zstd`` (the smallest files) or
-            ``none`` (~2.5 points less, files ~2.5 times larger); docs/logs.md. It changes no
-            episode.
+            an episode less than zstd, files 14-20 % larger), ``zstd`` (the smallest files) or
+            ``none`` (~1.5 points less than lz4, files 1.7-2.2 times larger); docs/logs.md. It
+            changes no episode.
         shards: split the ``episodes`` environments over this many runs
         (:mod:`amex.experiment.shards`).
         shard: which of them this run executes, ``0 <= shard < shards``: the environments

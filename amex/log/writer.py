@@ -45,9 +45,11 @@ batch in turn and then all are written in one loop of the SDK's calls, so that e
 warm instead of once between every 10 inner steps. A plan given as a
 :class:`~amex.core.lazy.LazyRows` is computed there, at the knots drawn alone. What the run shares
 (link transforms, ``/reference``, the robot's record, the schemas) is made once per run
-(:mod:`amex.log.constants`). What remains is mostly the SDK's writing (~2 us per message, six
-to nine messages a step) and the steps' values taken between the inner steps, where they run
-cold (docs/results/speed.md gives the measured cost).
+(:mod:`amex.log.constants`); the scene's world update is decided and encoded for the batch in
+two compiled calls, and the executed path's points are encoded once, as they come. What
+remains is mostly the SDK's writing (~2 us per message, six to nine messages a step, its lz4
+chunks included) and the steps' values taken between the inner steps, where they run cold
+(docs/results/speed.md gives the measured cost).
 
 Crash safety: the file is written as ``<path>.part`` and renamed to ``<path>`` when closed, so a
 finished log never has the suffix, and no existing file is ever overwritten: an existing
@@ -100,8 +102,8 @@ CHUNK_SIZE = 64 * 1024  # [bytes] uncompressed chunk target: what a SIGKILL can 
 PART_SUFFIX = ".part"
 #: The chunks' compressions (``log_compression``): lz4 is the default. Measured on 2026-12-07
 #: (Zen 4; the DMP and AMEX on Task 1, 2 rounds of 6 environments): zstd costs ~1 point of an
-#: episode more than lz4 for files ~17-20 % smaller; none ~1.5 points less than lz4, files ~2.1
-#: times larger than lz4's.
+#: episode more than lz4 for files 13-17 % smaller (lz4's are 14-20 % larger: 96-194 kB per
+#: simulated second against 81-169); none ~1.5 points less than lz4, files 1.7-2.2 times lz4's.
 COMPRESSIONS: dict[str, MCAPCompression | None] = {
     "lz4": MCAPCompression.Lz4,
     "zstd": MCAPCompression.Zstd,
