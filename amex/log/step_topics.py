@@ -105,9 +105,10 @@ class StepTopics:
             )
         method = channels.get("/method")
         if method is not None:
-            log, encode = method.log, self._method.encode_snapshot
-            for out, t, step in zip(steps, times, kept, strict=True):
-                out.append((log, encode(t, step.method)))
+            log = method.log
+            messages = self._method.encode_snapshots(times, [step.method for step in kept])
+            for out, message in zip(steps, messages, strict=True):
+                out.append((log, message))
         return StepMessages(steps, times, stamps, batch.y[:k, :3].tolist())
 
     def _joints_generic(
