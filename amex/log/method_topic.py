@@ -181,46 +181,6 @@ class MethodTopic:
         """The message of a step at time ``t`` [s] from its :meth:`snapshot`."""
         return self.encode_captured(t, self.capture(snap, copy=False))
 
-    def encode_snapshots(self, times: list[float], snaps: list[dict[str, Any]]) -> list[bytes]:
-        """:meth:`encode_snapshot` of each of a batch's steps, in turn (the same bytes).
-
-        The steps' keys and value types are compared with the previous step's, and the recipe
-        looked up again only where they changed; where every value is a number (the DMP's
-        steps), each message is its recipe's pack alone (2.5 to ~1 us a step in a loop).
-        """
-        out = []
-        keys_before: tuple[str, ...] | None = None
-        types_before: tuple[type, ...] | None = None
-        logged: tuple[str, ...] = ()
-        recipe: Recipe | None = None
-        every = False  # the step's keys are all logged, in order
-        for t, snap in zip(times, snaps, strict=True):
-            keys = tuple(snap)
-            if keys != keys_before:
-                keys_before, types_before = keys, None
-                try:
-                    logged = self._logged[keys]
-                except KeyError:
-                    logged = self._logged[keys] = self._logged_keys(keys)
-                every = logged == keys
-            values = list(snap.values()) if every else [snap[k] for k in logged]
-            types = tuple(map(type, values))
-            if types != types_before or recipe is None:
-                types_before = types
-                signature = (logged, types)
-                try:
-                    recipe = self._recipes[signature]
-                except KeyError:
-                    recipe = self._recipes[signature] = self._recipe(*signature)
-            if recipe.packed is not None:
-                arguments = list(recipe.arguments)
-                arguments[1] = t
-                arguments[3::2] = values
-                out.append(recipe.packed.pack(*arguments))
-            else:
-                out.append(self.encode_captured(t, (recipe, values)))
-        return out
-
     def encode_captured(self, t: float, captured: Captured) -> bytes:
         """The message of a step at time ``t`` [s] from its :meth:`capture`."""
         recipe, values = captured

@@ -105,10 +105,9 @@ class StepTopics:
             )
         method = channels.get("/method")
         if method is not None:
-            log = method.log
-            messages = self._method.encode_snapshots(times, [step.method for step in kept])
-            for out, message in zip(steps, messages, strict=True):
-                out.append((log, message))
+            log, encode = method.log, self._method.encode_snapshot
+            for out, t, step in zip(steps, times, kept, strict=True):
+                out.append((log, encode(t, step.method)))
         return StepMessages(steps, times, stamps, batch.y[:k, :3].tolist())
 
     def _joints_generic(

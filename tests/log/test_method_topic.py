@@ -177,18 +177,6 @@ def test_numbers_and_arrays_are_one_pack_with_the_general_rules_bytes():
     assert read["y_star"] == [0.0, 1.0, 2.0, 3.0] and read["yd_star"] == [float(2**60), -1.0]
 
 
-def test_a_batch_of_snapshots_is_encoded_as_each_alone():
-    rng = np.random.default_rng(5)
-    topic = MethodTopic()
-    topic.schema(0.0, _first())
-    dmp = [{"s": float(x), "steps": 3} for x in rng.normal(size=5)]  # runs of one recipe
-    snaps = [topic.snapshot(v) for v in [*_variants(rng), *dmp, *_variants(rng)]]
-    times = [0.01 * k for k in range(len(snaps))]
-    expected = [topic.encode_snapshot(t, snap) for t, snap in zip(times, snaps, strict=True)]
-    assert topic.encode_snapshots(times, snaps) == expected
-    assert topic.encode_snapshots([], []) == []
-
-
 def test_crs_steps_are_one_pack_per_length_of_their_texts():
     first = {"mode": "shrink", "steps": 40, "iterations": 3, "cost": 0.5, "converged": True}
     topic = MethodTopic()
