@@ -98,7 +98,7 @@ class SceneChannels:
     def world_updates(
         self,
         times: Sequence[float],
-        stamps: Sequence[int],
+        stamps: Sequence[int] | np.ndarray,
         goals: Sequence[np.ndarray] | np.ndarray,
         obstacles: Sequence[np.ndarray],
     ) -> dict[int, bytes]:

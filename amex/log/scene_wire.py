@@ -33,7 +33,7 @@ from foxglove.messages import (
 )
 
 from amex.log.frames import IDENTITY, WORLD_FRAME
-from amex.log.wire import _timestamp, _varint_size, double_field, varint_field
+from amex.log.wire import double_field, varint_field, varint_size, write_timestamp
 
 _ENTITIES = b"\x12"  # SceneUpdate.entities (field 2)
 _SPHERES = b"\x4a"  # SceneEntity.spheres (field 9)
@@ -225,7 +225,7 @@ def _position_size(center: np.ndarray) -> int:
 def _sphere_body(center: np.ndarray, orientation: int, rest: int) -> tuple[int, int]:
     """A SpherePrimitive's bytes, and its pose's, at ``center``."""
     pose = 2 + _position_size(center) + orientation
-    return 1 + _varint_size(pose) + pose + rest, pose
+    return 1 + varint_size(pose) + pose + rest, pose
 
 
 @numba.njit(cache=True)
@@ -279,25 +279,25 @@ def encode_spheres(
         seconds, nanos = ns[r] // 1_000_000_000, ns[r] % 1_000_000_000
         stamp = 0
         if seconds:
-            stamp += 1 + _varint_size(seconds)
+            stamp += 1 + varint_size(seconds)
         if nanos:
-            stamp += 1 + _varint_size(nanos)
+            stamp += 1 + varint_size(nanos)
         bounds[j, 0] = i
         s = 0
         for e in range(len(entity_ends)):
             start = entity_ends[e - 1] if e else 0
-            body = 1 + _varint_size(stamp) + stamp + entity_ends[e] - start
+            body = 1 + varint_size(stamp) + stamp + entity_ends[e] - start
             first = s
             while s < n_spheres and sphere_entity[s] == e:  # the entity's spheres' sizes
                 mid = sphere_ends[s, 0]
                 low = sphere_ends[s - 1, 1] if s else 0
                 center = centers[r, sphere_center[s]]
                 size, _ = _sphere_body(center, mid - low, sphere_ends[s, 1] - mid)
-                body += 1 + _varint_size(size) + size
+                body += 1 + varint_size(size) + size
                 s += 1
             out[i] = 0x12  # SceneUpdate.entities
             i = varint_field(out, i + 1, body)
-            i = _timestamp(out, i, seconds, nanos)
+            i = write_timestamp(out, i, seconds, nanos)
             i = _copy(out, i, entities, start, entity_ends[e])
             for t in range(first, s):
                 center = centers[r, sphere_center[t]]

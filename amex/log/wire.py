@@ -115,7 +115,8 @@ def varint_field(out: np.ndarray, i: int, value: int) -> int:
 
 
 @numba.njit(cache=True)
-def _varint_size(value: int) -> int:
+def varint_size(value: int) -> int:
+    """The bytes of ``value`` >= 0 as a protobuf varint."""
     n = 1
     while value >= 0x80:
         value >>= 7
@@ -135,13 +136,13 @@ def double_field(out: np.ndarray, i: int, tag: int, value: float, scratch: np.nd
 
 
 @numba.njit(cache=True)
-def _timestamp(out: np.ndarray, i: int, seconds: int, nanos: int) -> int:
+def write_timestamp(out: np.ndarray, i: int, seconds: int, nanos: int) -> int:
     """The timestamp field (number 1): present, with its non-zero fields."""
     size = 0
     if seconds:
-        size += 1 + _varint_size(seconds)
+        size += 1 + varint_size(seconds)
     if nanos:
-        size += 1 + _varint_size(nanos)
+        size += 1 + varint_size(nanos)
     out[i] = _TIMESTAMP
     i = varint_field(out, i + 1, size)
     if seconds:
@@ -187,7 +188,7 @@ def encode_step(
     scratch = np.empty(1)
     quat = np.empty(4)
     stamp = np.empty(24, dtype=np.uint8)
-    stamp_size = _timestamp(stamp, 0, seconds, nanos)
+    stamp_size = write_timestamp(stamp, 0, seconds, nanos)
     k = len(joint_index)
     i = 0
     start = 0
