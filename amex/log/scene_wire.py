@@ -229,14 +229,6 @@ def _sphere_body(center: np.ndarray, orientation: int, rest: int) -> tuple[int, 
 
 
 @numba.njit(cache=True)
-def _copy(out: np.ndarray, i: int, blob: np.ndarray, start: int, end: int) -> int:
-    for b in range(start, end):
-        out[i] = blob[b]
-        i += 1
-    return i
-
-
-@numba.njit(cache=True)
 def encode_spheres(
     ns: np.ndarray,
     centers: np.ndarray,
@@ -298,7 +290,9 @@ def encode_spheres(
             out[i] = 0x12  # SceneUpdate.entities
             i = varint_field(out, i + 1, body)
             i = write_timestamp(out, i, seconds, nanos)
-            i = _copy(out, i, entities, start, entity_ends[e])
+            end = entity_ends[e]
+            out[i : i + end - start] = entities[start:end]
+            i += end - start
             for t in range(first, s):
                 center = centers[r, sphere_center[t]]
                 mid = sphere_ends[t, 0]
@@ -314,7 +308,9 @@ def encode_spheres(
                 for c in range(3):
                     if center[c] != 0.0:
                         i = double_field(out, i, 0x09 + 8 * c, center[c], scratch)
-                i = _copy(out, i, spheres, low, sphere_ends[t, 1])
+                high = sphere_ends[t, 1]
+                out[i : i + high - low] = spheres[low:high]
+                i += high - low
         bounds[j, 1] = i
     return i
 
