@@ -152,9 +152,10 @@ class ReplayRecorder:
     Every ``batch`` steps, as the logger writes its batches (:data:`amex.log.writer.BATCH`), it
     logs every message of the log stamped up to that step's time, already encoded, in the log's
     order; ``batch=1`` logs them as the steps come, each between the inner steps, where the
-    SDK's calls run cold (on 2026-12-07 that cost 2-3 points of an episode more: stop 43's
-    floors were taken so). The SDK's context, file and channels are made at the first step, the
-    header record with them; :meth:`finish` logs the rest, the other records, and closes.
+    SDK's calls run cold (on 2026-12-07 that cost 2-3 points of an episode more; the floors
+    printed before that day were taken so). The SDK's context, file and channels are made at
+    the first step, the header record with them; :meth:`finish` logs the rest, the other
+    records, and closes.
     """
 
     def __init__(self, log: Path, out: Path, batch: int | None = None) -> None:

@@ -221,12 +221,8 @@ class MethodTopic:
             for key, value_type in zip(keys, types, strict=True)
         )
         arrays = tuple(i for i, kind in enumerate(types) if kind is np.ndarray or kind is list)
-        numbers = all(
-            kinds[key] == "number" and value_type in _NUMBER_TYPES
-            for key, value_type in zip(keys, types, strict=True)
-        )
         forms = [_form(kinds[key], value_type) for key, value_type in zip(keys, types, strict=True)]
-        if not numbers:
+        if any(form != _NUMBER for form in forms):
             if None in forms:  # some value has no form in one pack: the converters
                 return Recipe(converters, arrays, None, ())
             fields = tuple(

@@ -154,7 +154,7 @@ class SceneChannels:
             entities.append((self._obstacle_entity, spheres))
         encoding = W.spheres_encoding(entities)
         size = len(encoding.entities) + len(encoding.spheres)  # and what a step adds
-        size += 17 * len(encoding.entity_ends) + 35 * len(encoding.sphere_entity)
+        size += 20 * len(encoding.entity_ends) + 36 * len(encoding.sphere_entity)
         layout = self._world_layouts[drawn] = _WorldLayout(encoding, size)
         return layout
 
