@@ -40,22 +40,38 @@ class LazyRows(Lazy):
         length: the number of rows of the whole array.
         rows: computes the rows of an integer index array (in its order), or all for None;
             ``rows(index)`` must equal ``rows(None)[index]``, bit for bit.
+
+    Attributes:
+        source, map, group: for :meth:`rowwise`'s, its rows, the map of rows and its group;
+            else None.
     """
 
-    __slots__ = ("length", "rows")
+    __slots__ = ("length", "rows", "source", "map", "group")
 
     def __init__(self, length: int, rows: Callable[[Any], Any]) -> None:
         super().__init__(lambda: rows(None))
         self.length = length
         self.rows = rows
+        self.source: Any = None
+        self.map: Callable[[Any], Any] | None = None
+        self.group: Any = None
 
     @classmethod
-    def rowwise(cls, compute: Callable[[Any], Any], rows: Any) -> LazyRows:
+    def rowwise(cls, compute: Callable[[Any], Any], rows: Any, group: Any = None) -> LazyRows:
         """``compute(rows)``, lazily, for a ``compute`` that maps each row on its own.
 
         A plan's knots to their TCP positions: some rows are ``compute(rows[index])``.
+
+        Args:
+            compute: the map of rows (``compute(a)[i]`` depends on ``a[i]`` alone, bit for bit).
+            rows: its input, shape (length, ...).
+            group: a hashable key shared by lazies whose ``compute`` is the same map: a reader
+                may then compute rows of several of them in one call, on their rows stacked
+                (the log's scene, a batch's drawn plans at a time). None: no group.
         """
-        return cls(len(rows), lambda index: compute(rows if index is None else rows[index]))
+        lazy = cls(len(rows), lambda index: compute(rows if index is None else rows[index]))
+        lazy.source, lazy.map, lazy.group = rows, compute, group
+        return lazy
 
     def take(self, index: Any) -> Any:
         """The rows ``index`` (an integer array; None: all), computed now (class notes)."""

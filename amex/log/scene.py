@@ -201,6 +201,38 @@ class SceneChannels:
             if isinstance(plan, Lazy):
                 plan = plan.compute()
             rows = self._rows(len(plan)) if isinstance(plan, np.ndarray) and plan.ndim else None
+        return self._plan_message(t, plan, rows)
+
+    def plan_updates(self, times: Sequence[float], plans: Sequence[Any]) -> list[bytes | None]:
+        """:meth:`plan_update` of each ``(times[j], plans[j])``, the same messages.
+
+        The drawn rows of :class:`~amex.core.lazy.LazyRows` plans of one group (CR's, MPPI's:
+        the TCP positions of knots) are computed in one call, on their knots stacked: a batch's
+        ten plans cost one call of the kinematics instead of ten (issue #29).
+        """
+        out: list[bytes | None] = [None] * len(plans)
+        groups: dict[Any, list[int]] = {}
+        for j, plan in enumerate(plans):
+            if isinstance(plan, LazyRows) and plan.group is not None:
+                groups.setdefault(plan.group, []).append(j)
+            else:
+                out[j] = self.plan_update(times[j], plan)
+        for members in groups.values():
+            parts = []
+            for j in members:
+                plan = plans[j]
+                rows = self._rows(plan.length)
+                parts.append(plan.source if rows is None else plan.source[rows])
+            points = plans[members[0]].map(np.concatenate(parts))
+            start = 0
+            for j, part in zip(members, parts, strict=True):
+                end = start + len(part)
+                out[j] = self._plan_message(times[j], points[start:end], None)
+                start = end
+        return out
+
+    def _plan_message(self, t: float, plan: Any, rows: np.ndarray | None) -> bytes | None:
+        """``/scene/plan``'s message of ``plan``'s ``rows`` (None: all), if it is (k, >= 3)."""
         if not (isinstance(plan, np.ndarray) and plan.ndim == 2 and plan.shape[1] >= 3):
             return None
         points = W.line_points(plan if rows is None else plan[rows])

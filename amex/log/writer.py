@@ -387,7 +387,8 @@ class EpisodeLogger:
             steps, times, stamps = encoded.steps, encoded.times, encoded.stamps
             first = self._steps
             drawn = range((-first) % every, count, every)  # the steps that draw path and plan
-            plans = {i: scene.plan_update(times[i], kept[i].plan) for i in drawn}
+            updates = scene.plan_updates([times[i] for i in drawn], [kept[i].plan for i in drawn])
+            plans = dict(zip(drawn, updates, strict=True))
             world_log, path_log = scene.world.base.log, scene.path.base.log
             plan_log, reference_log = scene.plan.base.log, scene.reference.base.log
             worlds = scene.world_updates(

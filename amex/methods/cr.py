@@ -385,5 +385,5 @@ class CR(Method):
             cost=s.cost,
             converged=s.converged,
             solve_time=s.solve_time,
-            plan=LazyRows.rowwise(lambda q: positions(q, tcp), knots),
+            plan=LazyRows.rowwise(lambda q: positions(q, tcp), knots, (positions, tcp)),
         )

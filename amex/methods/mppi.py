@@ -511,5 +511,7 @@ class MPPI(Method):
         """
         s, path = self._status, self.nominal_path()
         positions, tcp = self.kinematics.frame_positions, self.robot.tcp_frame_id
-        plan: Any = LazyRows.rowwise(lambda q: positions(q, tcp), path) if len(path) else path
+        plan: Any = path
+        if len(path):
+            plan = LazyRows.rowwise(lambda q: positions(q, tcp), path, (positions, tcp))
         return LazyDict(**s._asdict(), early_stops=self.early_stops, plan=plan)

@@ -184,6 +184,31 @@ def test_drawn_rows_are_distinct_increasing_and_those_np_unique_kept():
         assert np.array_equal(rows, expected) and rows[0] == 0 and rows[-1] == k - 1
 
 
+def test_a_batchs_plans_of_one_group_are_drawn_as_each_alone(robot):
+    from amex.core.lazy import Lazy, LazyRows
+    from amex.plan.batch_kinematics import BatchKinematics
+
+    kinematics = BatchKinematics(robot)
+    positions, tcp = kinematics.frame_positions, robot.tcp_frame_id
+    rng = np.random.default_rng(6)
+
+    def knots(k):
+        return rng.uniform(-2.5, 2.5, (k, robot.nv))
+
+    def cr_plan(q):  # as CR's internals() makes it: a new lambda, the same group
+        return LazyRows.rowwise(lambda a: positions(a, tcp), q, (positions, tcp))
+
+    plans = [cr_plan(knots(k)) for k in (1, 40, 100, 101, 250, 401)]
+    plans += [None, np.zeros((3, 2)), rng.normal(size=(150, 3)), Lazy(lambda: np.ones((5, 3)))]
+    plans += [LazyRows.rowwise(lambda a: a[:, :3] * 2.0, rng.normal(size=(120, 4)))]  # no group
+    plans += [cr_plan(knots(300))]
+    times = [0.05 * j for j in range(len(plans))]
+    scene = _scene([0.05])
+    alone = [scene.plan_update(t, plan) for t, plan in zip(times, plans, strict=True)]
+    assert scene.plan_updates(times, plans) == alone
+    assert sum(update is None for update in alone) == 2  # None and the (3, 2) array
+
+
 def test_a_cr_log_writes_each_steps_topics_in_order_and_the_plan_at_its_drawn_knots(tmp_path):
     """The batch writes every message of a step before the next step's, in the logger's order,
     and CR's plan (a LazyRows) is drawn at the knots' TCP positions, computed for those alone."""
@@ -200,23 +225,24 @@ def test_a_cr_log_writes_each_steps_topics_in_order_and_the_plan_at_its_drawn_kn
     config.method = METHODS["cr"].config_class()
     run = setup(config, prepare(config))
     drawn = []  # what the scene drew: the plan's length, the rows asked for, the points
-    plan_update = SceneChannels.plan_update
+    plan_updates = SceneChannels.plan_updates
 
-    def spy(self, t, plan):
-        assert isinstance(plan, LazyRows)  # not computed at the step: at the batch
-        rows = self._rows(plan.length)
-        whole = plan.take(None)
-        drawn.append(whole if rows is None else whole[rows])
-        return plan_update(self, t, plan)
+    def spy(self, times, plans):
+        for plan in plans:
+            assert isinstance(plan, LazyRows)  # not computed at the step: at the batch
+            rows = self._rows(plan.length)
+            whole = plan.take(None)
+            drawn.append(whole if rows is None else whole[rows])
+        return plan_updates(self, times, plans)
 
-    SceneChannels.plan_update = spy
+    SceneChannels.plan_updates = spy
     try:
         path, context = tmp_path / "cr.mcap", run.context
         scenario = _scenario(run, 0)
         with EpisodeLogger(path, context.robot, context.plan, scenario, {}) as logger:
             run_setup_with(run, 0, logger)
     finally:
-        SceneChannels.plan_update = plan_update
+        SceneChannels.plan_updates = plan_updates
     order = ["/tf", "/joint_states", "/tcp", "/goal", "/command", "/method", "/scene/world",
              "/scene/path", "/scene/plan", "/scene/reference"]  # fmt: skip
     with open(path, "rb") as f:
