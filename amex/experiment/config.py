@@ -27,7 +27,8 @@ from amex.sim.scenario import TASKS, ScenarioConfig
 from amex.sim.simulation import MismatchConfig
 
 LOG_LEVELS = ("none", "full")
-#: How ``log=full`` compresses its chunks (:data:`amex.log.writer.COMPRESSIONS`): lz4 first.
+#: How ``log=full`` compresses its chunks: the keys of :data:`amex.log.writer.COMPRESSIONS`, its
+#: default first (named here so that a configuration is checked without importing the SDK).
 LOG_COMPRESSIONS = ("lz4", "zstd", "none")
 MAX_PLAN_STEPS = 100_000  # reference-plan knots; beyond, the solver's matrices exhaust memory
 #: Episodes of one run: more is days of CPU and its bookkeeping would not fit in memory; a larger
@@ -154,7 +155,7 @@ class RunConfig:
     std_ddof: int = field(default=0, metadata=limits(ge=0, le=1))
     implementation: str = "ours"
     log: str = "none"
-    log_compression: str = "lz4"
+    log_compression: str = LOG_COMPRESSIONS[0]
     shards: int = field(default=1, metadata=limits(ge=1))
     shard: int = 0
 

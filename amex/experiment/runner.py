@@ -149,7 +149,7 @@ class EpisodeSetup:
     gains: OSCGains
     loop: LoopConfig
     world: dict[str, Any]
-    log_compression: str = "lz4"
+    log_compression: str
 
 
 def setup(config: RunConfig, context: RunContext) -> EpisodeSetup:

@@ -70,7 +70,6 @@ class SceneChannels:
         self._max_line_points = max_line_points
         self._plan_rows: dict[int, np.ndarray | None] = {}  # plan length -> the rows drawn
         self._path_points = bytearray()  # the executed path's points, encoded as they come
-        self._path_count = 0
         self._goal_entity = SceneEntity(frame_id=WORLD_FRAME, id="goal").encode()
         self._obstacle_entity = SceneEntity(frame_id=WORLD_FRAME, id="obstacles").encode()
         self._goal_spheres = (
@@ -174,7 +173,6 @@ class SceneChannels:
         (each point's bytes depend on it alone).
         """
         self._path_points += W.point_field(x, y, z)
-        self._path_count += 1
 
     def publish_path(self, t: float) -> None:
         """Log :meth:`path_update`, if any."""
@@ -184,7 +182,7 @@ class SceneChannels:
 
     def path_update(self, t: float) -> bytes | None:
         """The executed TCP path so far, ``/scene/path``'s message (None before a first point)."""
-        if not self._path_count:
+        if not self._path_points:
             return None
         return W.line_update(self._path_line, round(t * 1e9), self._path_points)
 

@@ -109,11 +109,12 @@ COMPRESSIONS: dict[str, MCAPCompression | None] = {
     "zstd": MCAPCompression.Zstd,
     "none": None,
 }
+DEFAULT_COMPRESSION = "lz4"  # RunConfig.log_compression's default (amex.experiment.config)
 COMPRESSION_LEVEL = 1  # fast zstd: level 3 saves ~3-5 % of the size for ~20 % more time
 BATCH = 50  # outer steps kept before they are written (0.5 s of simulation at 100 Hz)
 
 
-def write_options(compression: str = "lz4") -> MCAPWriteOptions:
+def write_options(compression: str = DEFAULT_COMPRESSION) -> MCAPWriteOptions:
     """The SDK's MCAP options of a log: chunks of :data:`CHUNK_SIZE`, no threads.
 
     Args:
@@ -162,7 +163,7 @@ class EpisodeLogger:
         *,
         path_every: int = 5,
         max_line_points: int = 100,
-        compression: str = "lz4",
+        compression: str = DEFAULT_COMPRESSION,
     ) -> None:
         options = write_options(compression)  # first: a bad value makes no file
         self.path = Path(path)

@@ -75,6 +75,14 @@ def test_logged_episode_opens_with_the_indexed_reader_and_has_foxglove_schemas(l
     assert names[:4] == ["episode", "scenario", "robot", "log"] and names[-1] == "outcome"
 
 
+def test_the_configurations_compressions_are_the_writers():
+    from amex.experiment.config import LOG_COMPRESSIONS
+    from amex.log.writer import COMPRESSIONS, DEFAULT_COMPRESSION
+
+    assert set(LOG_COMPRESSIONS) == set(COMPRESSIONS)
+    assert LOG_COMPRESSIONS[0] == DEFAULT_COMPRESSION == RunConfig().log_compression
+
+
 def test_each_compression_writes_the_same_messages_that_the_reader_reads_back(logged, tmp_path):
     config, context, result, path = logged
     with open(path, "rb") as f:
