@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from amex.core.errors import InputError
-from amex.methods.amex import AMEX, AMEXConfig
+from amex.methods.amex import AMEX, AMEXConfig, target_internals
 from amex.methods.base import Observation
 from amex.plan.reference import ReferencePlan
 
@@ -70,8 +70,10 @@ def test_step_internals_and_restart_match_the_oracle():
     for amex in (fast, oracle):
         amex.reset(obs)
     assert fast.internals() == oracle.internals()  # before the first update
+    _same_internals(fast.internals(), target_internals(None, fast.s))
     for k in range(30):
         command = fast.step(dataclasses.replace(obs, t=0.01 * k))
+        _same_internals(fast.internals(), target_internals(fast._target(), fast.s))
         target = oracle.update_reference(obs.y, obs.goal)
         np.testing.assert_array_equal(command.y, target.y_star)
         np.testing.assert_array_equal(command.yd, target.yd_star)
@@ -80,6 +82,17 @@ def test_step_internals_and_restart_match_the_oracle():
     fast.restart()
     oracle.restart()
     assert _same(fast, oracle, fast.update(Y[0], Y[-1]), oracle.update_reference(Y[0], Y[-1]))
+
+
+def _same_internals(a, b):
+    """The same keys in the same order, each value of the same type and bits."""
+    assert list(a) == list(b)
+    for key in a:
+        assert type(a[key]) is type(b[key]), key
+        if isinstance(a[key], np.ndarray):
+            assert a[key].tobytes() == b[key].tobytes(), key
+        else:
+            assert a[key] == b[key], key
 
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf])
