@@ -1,11 +1,12 @@
 """The outer steps a log keeps until it writes them: numbers in rows, encoded a batch at a time.
 
 :class:`StepBatch` keeps what the log needs of each step (:meth:`StepBatch.add`): the simulator's
-buffers (q_ddot, tau) and the command's parts are copied into preallocated rows; q, q_dot, y,
-y_dot and the goal, which the episode loop makes anew at every outer step for the observation
-and the logs (:mod:`amex.sim.episode`), are kept as they are and stacked into their rows a
-batch at a time (:meth:`StepBatch.fill`: five calls per batch instead of five per step, which
-ran cold between the inner steps); the rest (obstacles, command of another shape, internals) is
+buffers (q_ddot, tau) and the command's parts are copied into preallocated rows (a task-space
+command, the usual one, by two slice copies); q, q_dot, y, y_dot and the goal, which the
+episode loop makes anew at every outer step for the observation and the logs
+(:mod:`amex.sim.episode`), are kept as they are, with the step's time and which command parts
+it has, and put into their rows a batch at a time (:meth:`StepBatch.fill`: one concatenation
+each per batch instead of a copy each per step, which ran cold between the inner steps); the rest (obstacles, command of another shape, internals) is
 kept as the step gave it, copied where the loop or the method may reuse a buffer.
 :meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
 (:func:`amex.log.wire.encode_steps`) and ``/tcp`` and ``/goal`` (:func:`encode_numbers`) in two
@@ -65,7 +66,7 @@ class StepBatch:
     Attributes:
         count: the rows filled.
         t, ns, q, v, qacc, tau, y, yd, goal: the rows (only the first :attr:`count` are valid;
-            ns, q, v, y, yd and goal once :meth:`fill` ran).
+            t, ns, q, v, y, yd, goal and parts once :meth:`fill` ran).
         kept: per row, its :class:`Kept`.
     """
 
@@ -79,9 +80,11 @@ class StepBatch:
         self._sizes = np.array([m, m, n, n], dtype=np.int64)  # y*, y_dot*, q*, q_dot*
         self._offsets = np.concatenate([[0], np.cumsum(self._sizes)]).tolist()
         self.command = np.zeros((capacity, 2 * (m + n)))
-        self.parts = np.zeros((capacity, 4), dtype=np.int64)  # 1: the part is there
+        self.parts = np.zeros(capacity, dtype=np.int64)  # bit j: the command has part j
         self.kept: list[Kept] = []
-        self._fresh: list[tuple[np.ndarray, ...]] = []  # per row: q, q_dot, y, y_dot, goal
+        self._fresh: list[tuple[Any, ...]] = []  # per row: t, q, q_dot, y, y_dot, goal, parts
+        self._m = m
+        self._slices = [slice(a, b) for a, b in zip(self._offsets, self._offsets[1:])]
         self._packers: dict[tuple[int, ...], tuple[struct.Struct, list[bytes]]] = {}
         self._encoding = encoding
         self._joint_size = encoding.size if encoding is not None else 0
@@ -104,31 +107,42 @@ class StepBatch:
                 is, to be computed when the batch is written), or None.
         """
         i = self.count
-        state, obs = step.state, step.observation
-        t = step.t
-        self.t[i] = t
-        self.qacc[i] = step.qacc  # the simulator's buffers: copied here
-        self.tau[i] = step.tau
-        command = None
-        parts, offsets, row = self.parts[i], self._offsets, self.command[i]
-        if len(step.command) <= 4:
-            parts[:] = 0
-            for j, part in enumerate(step.command):
-                if part is not None:
-                    if len(part) != offsets[j + 1] - offsets[j]:
-                        command = self._packed_command(t, step.command)
-                        break
-                    row[offsets[j] : offsets[j + 1]] = part
-                    parts[j] = 1
+        t, state, obs, command, _, tau, qacc = step
+        self.qacc[i] = qacc  # the simulator's buffers: copied here
+        self.tau[i] = tau
+        packed = None
+        m = self._m
+        if len(command) == 4 and command[2] is None and command[3] is None:  # y*, y_dot*
+            y, yd = command[0], command[1]
+            if y is not None and yd is not None and len(y) == m and len(yd) == m:
+                row, slices = self.command[i], self._slices
+                row[slices[0]] = y
+                row[slices[1]] = yd
+                parts = _TASK_PARTS
+            else:
+                parts, packed = self._command_row(i, t, command)
         else:
-            command = self._packed_command(t, step.command)
-        if command is not None:
-            parts[:] = -1  # not in the rows: written from its kept message
+            parts, packed = self._command_row(i, t, command)
         if plan is not None and not isinstance(plan, Lazy):  # a lazy one is a snapshot
             plan = np.array(plan, dtype=float)
-        self.kept.append(Kept(obs.obstacles, command, method, plan))
-        self._fresh.append((state.q, state.v, obs.y, obs.yd, obs.goal))
+        self.kept.append(tuple.__new__(Kept, (obs.obstacles, packed, method, plan)))
+        self._fresh.append((t, state.q, state.v, obs.y, obs.yd, obs.goal, parts))
         self.count = i + 1
+
+    def _command_row(
+        self, i: int, t: float, command: tuple[np.ndarray | None, ...]
+    ) -> tuple[int, bytes | None]:
+        """Row ``i``'s command parts and their bits; or the packed message, another shape."""
+        if len(command) <= 4:
+            row, slices, flags = self.command[i], self._slices, 0
+            for j, part in enumerate(command):
+                if part is not None:
+                    if len(part) != slices[j].stop - slices[j].start:
+                        return _PACKED_PARTS, self._packed_command(t, command)
+                    row[slices[j]] = part
+                    flags |= 1 << j
+            return flags, None
+        return _PACKED_PARTS, self._packed_command(t, command)
 
     def _packed_command(self, t: float, command: tuple[np.ndarray | None, ...]) -> bytes:
         """``/command`` of a command of another shape than (m, m[, n, n]), packed here."""
@@ -154,7 +168,9 @@ class StepBatch:
         """Fill the rows from the arrays :meth:`add` kept (before :meth:`clear`); their count."""
         k = self.count
         if k and self._fresh:
-            q, v, y, yd, goal = zip(*self._fresh, strict=True)
+            t, q, v, y, yd, goal, parts = zip(*self._fresh, strict=True)
+            self.t[:k] = t
+            self.parts[:k] = parts
             # into the first k rows, contiguous: one concatenation each (np.stack makes a view
             # of every array first, ~3 times the time)
             np.concatenate(q, out=self.q[:k].reshape(-1))
@@ -202,6 +218,9 @@ class StepBatch:
         return Encoded(out[: start + end].tobytes(), joints, numbers)
 
 
+_TASK_PARTS = 0b0011  # a row's command parts, bit j for part j: y*, y_dot*
+_PACKED_PARTS = -1  # not in the rows: written from its kept message
+
 # /tcp: t, 3 + 3 + 3 doubles, distance: 9 + 3 * (2 + 24) + 9; /goal: 9 + 26 + 9 bytes
 _NUMBERS_SIZE = 96 + 44
 
@@ -240,8 +259,8 @@ def encode_numbers(
         yd: its rate, shape (rows, m) [m/s, 1/s].
         goal: the goal positions, shape (rows, 3) [m].
         command: y*, y_dot*, q*, q_dot* one after the other, shape (rows, 2 m + 2 n).
-        parts: per row and part, 1 if the command has it, 0 if not; -1 in the first: no
-            ``/command`` here (the row's command has another shape), shape (rows, 4).
+        parts: per row, bit j set if the command has part j (y*, y_dot*, q*, q_dot*); -1:
+            no ``/command`` here (the row's command has another shape), shape (rows,).
         sizes: the parts' sizes (m, m, n, n).
         out: the buffer (:class:`StepBatch` sizes it).
         bounds: set to, per row, where its ``/tcp``, ``/goal`` and ``/command`` messages start
@@ -267,12 +286,12 @@ def encode_numbers(
         i = _packed(out, i, 0x12, goal[r], scratch)
         i = double_field(out, i, 0x19, distance, scratch)
         bounds[r, 2] = i
-        if parts[r, 0] >= 0:
+        if parts[r] >= 0:
             i = double_field(out, i, 0x09, t[r], scratch)
             start = 0
             for j in range(4):
                 end = start + sizes[j]
-                if parts[r, j] == 1:
+                if parts[r] >> j & 1:
                     i = _packed(out, i, 0x12 + 8 * j, command[r, start:end], scratch)
                 start = end
         bounds[r, 3] = i
