@@ -6,8 +6,9 @@ command, the usual one, by two slice copies); q, q_dot, y, y_dot and the goal, w
 episode loop makes anew at every outer step for the observation and the logs
 (:mod:`amex.sim.episode`), are kept as they are, with the step's time and which command parts
 it has, and put into their rows a batch at a time (:meth:`StepBatch.fill`: one concatenation
-each per batch instead of a copy each per step, which ran cold between the inner steps); the rest (obstacles, command of another shape, internals) is
-kept as the step gave it, copied where the loop or the method may reuse a buffer.
+each per batch instead of a copy each per step, which ran cold between the inner steps); the
+rest (obstacles, command of another shape, internals) is kept as the step gave it, copied
+where the loop or the method may reuse a buffer.
 :meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
 (:func:`amex.log.wire.encode_steps`) and ``/tcp`` and ``/goal`` (:func:`encode_numbers`) in two
 compiled calls: the per-step Python is left with the SDK's writes (issue #29: one compiled call
@@ -84,7 +85,8 @@ class StepBatch:
         self.kept: list[Kept] = []
         self._fresh: list[tuple[Any, ...]] = []  # per row: t, q, q_dot, y, y_dot, goal, parts
         self._m = m
-        self._slices = [slice(a, b) for a, b in zip(self._offsets, self._offsets[1:])]
+        ends = self._offsets
+        self._slices = [slice(a, b) for a, b in zip(ends[:-1], ends[1:], strict=True)]
         self._packers: dict[tuple[int, ...], tuple[struct.Struct, list[bytes]]] = {}
         self._encoding = encoding
         self._joint_size = encoding.size if encoding is not None else 0

@@ -15,7 +15,10 @@ value types: one converter per key, the common types' without a type test (~1.5 
 15 numbers; their shortest texts took ~15 us). Where every value is a number (the DMP's steps),
 the recipe is one ``struct`` pack of ``t`` and all the fields, keys included: the same bytes as
 the converters' concatenation. Where every value is a number, a flag, a text or a small array
-(AMEX's steps, CR's), it is one pack per the arrays' sizes and the texts' lengths.
+(AMEX's steps, CR's), it is one pack per the arrays' sizes and the texts' lengths. A logger
+encodes a batch of steps at a time (:meth:`MethodTopic.encode_snapshots`): where every step has
+the same keys and only numbers and arrays of one size each (AMEX's, the DMP's), in one compiled
+call (:func:`encode_flat_rows`), the same bytes.
 :meth:`MethodTopic.reference_encode` converts each value by the general rule (:func:`_encoded`),
 the oracle (tests/log/test_method_topic.py compares them).
 """
@@ -26,11 +29,13 @@ import struct
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 
 from amex.core.lazy import LazyDict
 from amex.log import flat_proto as P
 from amex.log import messages as M
+from amex.log.wire import double_field, varint_field
 
 MAX_ARRAY = 64  # entries of the largest array that is logged per step
 
@@ -181,6 +186,85 @@ class MethodTopic:
         """The message of a step at time ``t`` [s] from its :meth:`snapshot`."""
         return self.encode_captured(t, self.capture(snap, copy=False))
 
+    def encode_snapshots(self, times: list[float], snaps: list[dict[str, Any]]) -> list[bytes]:
+        """:meth:`encode_snapshot` of each step of a batch: the same bytes, in one compiled call.
+
+        Where every step has the first step's keys in its order and each logged value is a
+        number of one of the number types or a number array of shape (k,), k <= :data:`MAX_ARRAY`
+        and the same k at every step (AMEX's, the DMP's steps): the values are gathered a key
+        at a time into one matrix of doubles and the messages written by
+        :func:`encode_flat_rows`, ~0.5 us a step against ~4.7 us for AMEX's alone. Any other
+        batch (flags, texts, None, a lazy dict: CR's steps) is encoded a step at a time.
+        """
+        layout = self._flat_layout(snaps)
+        if layout is None:
+            return [self.encode_snapshot(t, snap) for t, snap in zip(times, snaps, strict=True)]
+        keys, key_ends, counts, values = layout
+        k = len(snaps)
+        sizes = [9 if n < 0 else 10 + 8 * n for n in counts.tolist()]  # and the keys
+        row = 9 + (int(key_ends[-1]) if len(key_ends) else 0) + sum(sizes)
+        out = np.empty(k * row, dtype=np.uint8)
+        bounds = np.empty(k + 1, dtype=np.int64)
+        times_ = np.asarray(times, dtype=float)
+        encode_flat_rows(times_, values, keys, key_ends, counts, out, bounds)
+        data = out[: bounds[k]].tobytes()
+        edges = bounds.tolist()
+        return [data[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+    def _flat_layout(
+        self, snaps: list[dict[str, Any]]
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
+        """The fields and values of a batch for :func:`encode_flat_rows`, None if it has none.
+
+        Per logged key, its field key's bytes (``keys``, ending at ``key_ends``), its count
+        (-1: a number, else the array's length), and the values, shape (steps, doubles).
+        """
+        if not snaps:
+            return None
+        first = snaps[0]
+        keys = tuple(first)
+        for snap in snaps:
+            if type(snap) is not dict or tuple(snap) != keys:
+                return None  # a lazy dict, or other keys: a step at a time
+        try:
+            logged = self._logged[keys]
+        except KeyError:
+            logged = self._logged[keys] = self._logged_keys(keys)
+        kinds = self.kinds or {}
+        columns, counts, fields = [], [], b""
+        key_ends = []
+        k = len(snaps)
+        for key in logged:
+            column = [snap[key] for snap in snaps]
+            types = set(map(type, column))
+            kind = kinds[key]
+            if kind == "number" and types <= _NUMBER_SET:
+                try:
+                    columns.append(np.array(column, dtype=float).reshape(k, 1))
+                except OverflowError:  # an int beyond doubles: as a step alone does
+                    return None
+                counts.append(-1)
+            elif kind == "array" and types == _ARRAY_SET:
+                shapes = {(a.shape, a.dtype.kind) for a in column}
+                if len(shapes) != 1:
+                    return None
+                ((shape, dtype_kind),) = shapes
+                if len(shape) != 1 or shape[0] > MAX_ARRAY or dtype_kind not in "fiu":
+                    return None
+                columns.append(np.concatenate(column, dtype=float).reshape(k, shape[0]))
+                counts.append(shape[0])
+            else:
+                return None
+            fields += self._keys[key]
+            key_ends.append(len(fields))
+        values = np.concatenate(columns, axis=1) if columns else np.zeros((k, 0))
+        return (
+            np.frombuffer(fields, dtype=np.uint8) if fields else np.zeros(0, dtype=np.uint8),
+            np.array(key_ends, dtype=np.int64),
+            np.array(counts, dtype=np.int64),
+            np.ascontiguousarray(values),
+        )
+
     def encode_captured(self, t: float, captured: Captured) -> bytes:
         """The message of a step at time ``t`` [s] from its :meth:`capture`."""
         recipe, values = captured
@@ -235,6 +319,63 @@ class MethodTopic:
         packed = struct.Struct("<" + "".join(f"{len(key)}sd" for key, _ in pairs))
         arguments = tuple(x for pair in pairs for x in pair)
         return Recipe(converters, arrays, packed, arguments)
+
+
+_NUMBER_SET = frozenset(_NUMBER_TYPES)
+_ARRAY_SET = frozenset((np.ndarray,))
+
+
+@numba.njit(cache=True)
+def encode_flat_rows(
+    times: np.ndarray,
+    values: np.ndarray,
+    keys: np.ndarray,
+    key_ends: np.ndarray,
+    counts: np.ndarray,
+    out: np.ndarray,
+    bounds: np.ndarray,
+) -> None:
+    """Each row's message: ``t``, then per field its key and a double or packed doubles.
+
+    The bytes of :meth:`MethodTopic.encode_snapshot` for rows of numbers and arrays
+    (:meth:`MethodTopic.encode_snapshots`): ``t`` as field 1 (``0x09`` and 8 little-endian
+    bytes), then each field's key bytes and, for a number (count -1), its 8 bytes, for an array
+    of ``count`` doubles, the varint ``8 * count`` and the doubles.
+
+    Args:
+        times: the steps' times [s], shape (rows,).
+        values: per row, the numbers and the arrays' entries in field order, shape (rows, d).
+        keys: the fields' key bytes, one after the other.
+        key_ends: where each field's key ends in ``keys``, shape (fields,).
+        counts: per field, -1 (a number) or the array's length.
+        out: the buffer (large enough).
+        bounds: set to where each row's message starts, and the end, shape (rows + 1,).
+    """
+    scratch = np.empty(1)
+    raw = scratch.view(np.uint8)
+    i = 0
+    for r in range(len(times)):
+        bounds[r] = i
+        i = double_field(out, i, 0x09, times[r], scratch)
+        column = 0
+        start = 0
+        for f in range(len(key_ends)):
+            for b in range(start, key_ends[f]):
+                out[i] = keys[b]
+                i += 1
+            start = key_ends[f]
+            n = counts[f]
+            if n < 0:  # a number
+                n = 1
+            else:  # an array: its byte length first
+                i = varint_field(out, i, 8 * n)
+            for _ in range(n):
+                scratch[0] = values[r, column]
+                for b in range(8):
+                    out[i + b] = raw[b]
+                i += 8
+                column += 1
+    bounds[len(times)] = i
 
 
 def _form(kind: str, value_type: type) -> int | None:

@@ -105,9 +105,10 @@ class StepTopics:
             )
         method = channels.get("/method")
         if method is not None:
-            log, encode = method.log, self._method.encode_snapshot
-            for out, t, step in zip(steps, times, kept, strict=True):
-                out.append((log, encode(t, step.method)))
+            log = method.log
+            encoded_method = self._method.encode_snapshots(times, [step.method for step in kept])
+            for out, data in zip(steps, encoded_method, strict=True):
+                out.append((log, data))
         return StepMessages(steps, times, stamps, batch.y[:k, :3].tolist())
 
     def _joints_generic(

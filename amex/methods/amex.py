@@ -380,7 +380,7 @@ class AMEX(Method):
         """
         st, outputs = self._state, self._outputs
         if outputs is None:
-            return {"s": st.item(0), "delta_g": 1.0, "delta_y": 1.0, "y_star": None, "yd_star": None}
+            return target_internals(None, st.item(0))
         return {"s": st.item(8), "delta_g": st.item(6), "delta_y": st.item(7),
                 "y_star": outputs[0], "yd_star": outputs[1]}  # fmt: skip
 

@@ -1,6 +1,7 @@
 """``/method`` messages: the per-signature recipe against the general rule (the oracle)."""
 
 import math
+import struct
 
 import numpy as np
 import pytest
@@ -212,3 +213,69 @@ def test_a_snapshot_keeps_the_steps_values_and_computes_nothing():
     assert not computed
     plain = topic.snapshot({"s": 0.5, "y_star": buffer, "listed": values})
     assert type(plain) is dict and plain["y_star"] is not buffer and plain["listed"] is not values
+
+
+def _batches(rng):
+    """Batches of steps: uniform ones (one compiled call) and ones that are not."""
+    amex = {"s": 0.25, "delta_g": np.float64(0.5), "delta_y": 1.0, "y_star": np.zeros(6),
+            "yd_star": np.ones(6)}  # fmt: skip
+    yield [{**amex, "s": float(s), "y_star": rng.normal(size=6)} for s in rng.random(50)]
+    yield [  # numbers of every number type, non-finite ones, -0.0, ints beyond 2**53
+        {**amex, "s": math.nan, "delta_g": np.int64(-7), "delta_y": 2**53 + 1},
+        {**amex, "s": -0.0, "delta_g": math.inf, "delta_y": np.float64(-math.inf)},
+        {**amex, "s": 3, "y_star": np.array([math.nan, -0.0, 0.0, 1e308, 5e-324, -1.0])},
+        {**amex, "y_star": np.arange(6), "yd_star": np.array([2**60, -1, 0, 1, 2, 3])},
+        {**amex, "yd_star": np.ones(6, dtype=np.float32) / 3},
+        {**amex, "y_star": np.arange(12.0)[::2]},  # a strided view
+    ]
+    yield [{"phase": float(p), "phase_rate": -float(p)} for p in rng.random(7)]  # the DMP's
+    yield [{**amex, "y_star": np.zeros(0), "yd_star": np.zeros(0)}] * 3  # empty arrays
+    yield [{**amex, "y_star": np.zeros(64)}] * 2  # the largest array logged
+    yield [{"t": 5.0, **amex, "extra": 1.0}] * 2  # a key named t; a key the schema lacks
+    yield [{}] * 2
+    # not uniform: a step at a time (the same bytes all the same)
+    yield [amex, {**amex, "y_star": np.zeros(5)}]  # another size
+    yield [amex, {**amex, "y_star": np.zeros(65)}]  # too large: left out
+    yield [amex, {**amex, "y_star": np.zeros((2, 3))}]  # not (k,)
+    yield [amex, {**amex, "y_star": np.array([True] * 6)}]  # flags
+    yield [amex, {**amex, "s": None}]
+    yield [amex, {**amex, "s": True}]  # a flag where a number is
+    yield [amex, {**amex, "s": np.float32(0.5)}]
+    yield [amex, {**amex, "y_star": [0.5] * 6}]  # a list
+    yield [amex, dict(reversed(list(amex.items())))]  # another order
+    yield [amex, {k: v for k, v in amex.items() if k != "s"}]  # a key missing
+    yield [amex, {**amex, "s": 2**1100}]  # beyond doubles: as a step alone does
+    yield [{**amex, "mode": "tail", "converged": True}] * 2  # texts and flags (CR's)
+
+
+def test_a_batch_is_encoded_as_each_step_alone():
+    rng = np.random.default_rng(7)
+    for batch in _batches(rng):
+        topic = MethodTopic()
+        topic.schema(0.0, {"mode": "", "converged": False, **batch[0], "s": 0.0})
+        times = [0.01 * (j + 1) for j in range(len(batch))]
+        try:
+            snaps = [topic.snapshot(step) for step in batch]
+            alone = [topic.encode_snapshot(t, s) for t, s in zip(times, snaps, strict=True)]
+        except (OverflowError, TypeError, struct.error) as error:
+            with pytest.raises(type(error)):
+                topic.encode_snapshots(times, [topic.snapshot(step) for step in batch])
+            continue
+        together = topic.encode_snapshots(times, [topic.snapshot(step) for step in batch])
+        assert together == alone, batch[:2]
+        for t, step, data in zip(times, batch, together, strict=True):
+            assert data == topic.reference_encode(t, step)
+
+
+def test_a_uniform_batch_takes_the_compiled_call(monkeypatch):
+    import amex.log.method_topic as MT
+
+    topic = MethodTopic()
+    steps = [{"s": 0.1 * j, "y_star": np.full(3, float(j))} for j in range(5)]
+    topic.schema(0.0, steps[0])
+    calls = []
+    monkeypatch.setattr(MT.MethodTopic, "encode_snapshot", lambda *a: calls.append(a))
+    out = topic.encode_snapshots([0.0, 1.0, 2.0, 3.0, 4.0], steps)
+    assert not calls and len(out) == 5
+    decoder = FlatDecoder(topic.schema(0.0, steps[0]).descriptor_set(), "amex.MethodInternals")
+    assert decoder.decode(out[3]) == {"t": 3.0, "s": 0.1 * 3, "y_star": [3.0] * 3}
