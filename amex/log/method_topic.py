@@ -189,51 +189,43 @@ class MethodTopic:
     def encode_snapshots(self, times: list[float], snaps: list[dict[str, Any]]) -> list[bytes]:
         """:meth:`encode_snapshot` of each step of a batch: the same bytes, in one compiled call.
 
-        Where every step has the first step's keys in its order and each logged value is a
-        number of one of the number types or a number array of shape (k,), k <= :data:`MAX_ARRAY`
-        and the same k at every step (AMEX's, the DMP's steps): the values are gathered a key
-        at a time into one matrix of doubles and the messages written by
-        :func:`encode_flat_rows`, ~0.5 us a step against ~4.7 us for AMEX's alone. Any other
-        batch (flags, texts, None, a lazy dict: CR's steps) is encoded a step at a time.
+        Where every step has the first step's keys in its order and each logged value is, at
+        every step, a number of one of the number types, a flag (``bool``), a text (``str``) or
+        a number array of shape (k,), k <= :data:`MAX_ARRAY`, the same k at every step (AMEX's,
+        the DMP's, CR's steps): the values are gathered a key at a time (:class:`FlatRows`) and
+        the messages written by :func:`encode_flat_rows`, ~0.5 us a step against ~4.7 us for
+        AMEX's alone. Any other batch (None, numpy's flags, another size) is encoded a step at
+        a time.
         """
-        layout = self._flat_layout(snaps)
-        if layout is None:
+        rows = self._flat_rows(snaps)
+        if rows is None:
             return [self.encode_snapshot(t, snap) for t, snap in zip(times, snaps, strict=True)]
-        keys, key_ends, counts, values = layout
         k = len(snaps)
-        sizes = [9 if n < 0 else 10 + 8 * n for n in counts.tolist()]  # and the keys
-        row = 9 + (int(key_ends[-1]) if len(key_ends) else 0) + sum(sizes)
-        out = np.empty(k * row, dtype=np.uint8)
+        sizes = [9 if n < 0 else 10 + 8 * n for n in rows.counts.tolist()]  # and the keys
+        row = 9 + (int(rows.key_ends[-1]) if len(rows.key_ends) else 0) + sum(sizes)
+        out = np.empty(k * row + len(rows.texts), dtype=np.uint8)
         bounds = np.empty(k + 1, dtype=np.int64)
-        times_ = np.asarray(times, dtype=float)
-        encode_flat_rows(times_, values, keys, key_ends, counts, out, bounds)
+        encode_flat_rows(np.asarray(times, dtype=float), *rows, out, bounds)
         data = out[: bounds[k]].tobytes()
         edges = bounds.tolist()
         return [data[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
-    def _flat_layout(
-        self, snaps: list[dict[str, Any]]
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None:
-        """The fields and values of a batch for :func:`encode_flat_rows`, None if it has none.
-
-        Per logged key, its field key's bytes (``keys``, ending at ``key_ends``), its count
-        (-1: a number, else the array's length), and the values, shape (steps, doubles).
-        """
+    def _flat_rows(self, snaps: list[dict[str, Any]]) -> FlatRows | None:
+        """A batch's fields and values for :func:`encode_flat_rows`; None if it has none."""
         if not snaps:
             return None
-        first = snaps[0]
-        keys = tuple(first)
+        keys = tuple(snaps[0])
         for snap in snaps:
-            if type(snap) is not dict or tuple(snap) != keys:
-                return None  # a lazy dict, or other keys: a step at a time
+            if type(snap) not in _DICTS or tuple(snap) != keys:
+                return None  # another kind of dict, or other keys: a step at a time
         try:
             logged = self._logged[keys]
         except KeyError:
             logged = self._logged[keys] = self._logged_keys(keys)
         kinds = self.kinds or {}
-        columns, counts, fields = [], [], b""
-        key_ends = []
         k = len(snaps)
+        columns, counts, fields, key_ends = [], [], b"", []
+        texts: list[list[bytes]] = []
         for key in logged:
             column = [snap[key] for snap in snaps]
             types = set(map(type, column))
@@ -243,13 +235,22 @@ class MethodTopic:
                     columns.append(np.array(column, dtype=float).reshape(k, 1))
                 except OverflowError:  # an int beyond doubles: as a step alone does
                     return None
-                counts.append(-1)
-            elif kind == "array" and types == _ARRAY_SET:
-                shapes = {(a.shape, a.dtype.kind) for a in column}
-                if len(shapes) != 1:
+                counts.append(_NUMBER_COUNT)
+            elif kind == "boolean" and types == _FLAG_SET:
+                columns.append(np.array(column, dtype=float).reshape(k, 1))
+                counts.append(_FLAG_COUNT)
+            elif kind == "string" and types == _TEXT_SET:
+                try:
+                    texts.append([text.encode() for text in column])
+                except UnicodeEncodeError:  # (a lone surrogate) as a step alone does
                     return None
-                ((shape, dtype_kind),) = shapes
-                if len(shape) != 1 or shape[0] > MAX_ARRAY or dtype_kind not in "fiu":
+                counts.append(_TEXT_COUNT)
+            elif kind == "array" and types == _ARRAY_SET:
+                shapes, dtypes = {a.shape for a in column}, {a.dtype for a in column}
+                if len(shapes) != 1 or any(d.kind not in "fiu" for d in dtypes):
+                    return None
+                (shape,) = shapes
+                if len(shape) != 1 or shape[0] > MAX_ARRAY:
                     return None
                 columns.append(np.concatenate(column, dtype=float).reshape(k, shape[0]))
                 counts.append(shape[0])
@@ -258,11 +259,19 @@ class MethodTopic:
             fields += self._keys[key]
             key_ends.append(len(fields))
         values = np.concatenate(columns, axis=1) if columns else np.zeros((k, 0))
-        return (
+        if texts:  # row by row, the fields' texts in order
+            blob = b"".join(b"".join(row) for row in zip(*texts, strict=True))
+            lengths = np.array([[len(text) for text in row] for row in zip(*texts, strict=True)])
+            text_ends = np.cumsum(lengths, axis=None).reshape(k, len(texts))
+        else:
+            blob, text_ends = b"", np.zeros((k, 0), dtype=np.int64)
+        return FlatRows(
+            np.ascontiguousarray(values),
+            np.frombuffer(blob, dtype=np.uint8) if blob else np.zeros(0, dtype=np.uint8),
+            np.ascontiguousarray(text_ends, dtype=np.int64),
             np.frombuffer(fields, dtype=np.uint8) if fields else np.zeros(0, dtype=np.uint8),
             np.array(key_ends, dtype=np.int64),
             np.array(counts, dtype=np.int64),
-            np.ascontiguousarray(values),
         )
 
     def encode_captured(self, t: float, captured: Captured) -> bytes:
@@ -322,50 +331,93 @@ class MethodTopic:
 
 
 _NUMBER_SET = frozenset(_NUMBER_TYPES)
-_ARRAY_SET = frozenset((np.ndarray,))
+_FLAG_SET, _TEXT_SET, _ARRAY_SET = frozenset((bool,)), frozenset((str,)), frozenset((np.ndarray,))
+_DICTS = (dict, LazyDict)
+# FlatRows.counts of the fields that are no arrays
+_NUMBER_COUNT, _FLAG_COUNT, _TEXT_COUNT = -1, -2, -3
+
+
+class FlatRows(NamedTuple):
+    """A batch of ``/method`` messages of one layout (:meth:`MethodTopic.encode_snapshots`).
+
+    Attributes:
+        values: per row, the numbers, flags (0.0 or 1.0) and the arrays' entries in field
+            order, shape (rows, d).
+        texts: the texts' UTF-8 bytes, row by row, each row's in field order.
+        text_ends: where each row's texts end in ``texts``, shape (rows, texts per row).
+        keys: the fields' key bytes, one after the other.
+        key_ends: where each field's key ends in ``keys``, shape (fields,).
+        counts: per field, an array's length, or -1 (a number), -2 (a flag), -3 (a text).
+    """
+
+    values: np.ndarray
+    texts: np.ndarray
+    text_ends: np.ndarray
+    keys: np.ndarray
+    key_ends: np.ndarray
+    counts: np.ndarray
 
 
 @numba.njit(cache=True)
 def encode_flat_rows(
     times: np.ndarray,
     values: np.ndarray,
+    texts: np.ndarray,
+    text_ends: np.ndarray,
     keys: np.ndarray,
     key_ends: np.ndarray,
     counts: np.ndarray,
     out: np.ndarray,
     bounds: np.ndarray,
 ) -> None:
-    """Each row's message: ``t``, then per field its key and a double or packed doubles.
+    """Each row's message (:class:`FlatRows`): ``t``, then per field its key and its value.
 
-    The bytes of :meth:`MethodTopic.encode_snapshot` for rows of numbers and arrays
-    (:meth:`MethodTopic.encode_snapshots`): ``t`` as field 1 (``0x09`` and 8 little-endian
-    bytes), then each field's key bytes and, for a number (count -1), its 8 bytes, for an array
-    of ``count`` doubles, the varint ``8 * count`` and the doubles.
+    The bytes of :meth:`MethodTopic.encode_snapshot`: ``t`` as field 1 (``0x09`` and 8
+    little-endian bytes), then each field's key bytes and a number's 8 bytes, a flag's byte,
+    a text's varint length and bytes, an array's varint byte length and doubles.
 
     Args:
         times: the steps' times [s], shape (rows,).
-        values: per row, the numbers and the arrays' entries in field order, shape (rows, d).
-        keys: the fields' key bytes, one after the other.
-        key_ends: where each field's key ends in ``keys``, shape (fields,).
-        counts: per field, -1 (a number) or the array's length.
+        values: :attr:`FlatRows.values`.
+        texts: :attr:`FlatRows.texts`.
+        text_ends: :attr:`FlatRows.text_ends`.
+        keys: :attr:`FlatRows.keys`.
+        key_ends: :attr:`FlatRows.key_ends`.
+        counts: :attr:`FlatRows.counts`.
         out: the buffer (large enough).
         bounds: set to where each row's message starts, and the end, shape (rows + 1,).
     """
     scratch = np.empty(1)
     raw = scratch.view(np.uint8)
     i = 0
+    text = 0  # the next text's start in texts
     for r in range(len(times)):
         bounds[r] = i
         i = double_field(out, i, 0x09, times[r], scratch)
         column = 0
         start = 0
+        t = 0  # the row's texts so far
         for f in range(len(key_ends)):
             for b in range(start, key_ends[f]):
                 out[i] = keys[b]
                 i += 1
             start = key_ends[f]
             n = counts[f]
-            if n < 0:  # a number
+            if n == -2:  # a flag
+                out[i] = 1 if values[r, column] != 0.0 else 0
+                i += 1
+                column += 1
+                continue
+            if n == -3:  # a text
+                end = text_ends[r, t]
+                i = varint_field(out, i, end - text)
+                for b in range(text, end):
+                    out[i] = texts[b]
+                    i += 1
+                text = end
+                t += 1
+                continue
+            if n == -1:  # a number
                 n = 1
             else:  # an array: its byte length first
                 i = varint_field(out, i, 8 * n)

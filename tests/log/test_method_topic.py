@@ -6,6 +6,7 @@ import struct
 import numpy as np
 import pytest
 
+from amex.core.lazy import Lazy, LazyDict
 from amex.log.flat_proto import FlatDecoder, descriptor_set, field_names
 from amex.log.method_topic import MethodTopic
 
@@ -110,8 +111,6 @@ def test_keys_that_are_no_identifiers_get_field_names_and_damage_is_refused():
 
 
 def test_a_lazy_value_the_schema_lacks_is_not_computed_for_the_message():
-    from amex.core.lazy import Lazy, LazyDict
-
     computed = []
 
     def plan():
@@ -192,8 +191,6 @@ def test_crs_steps_are_one_pack_per_length_of_their_texts():
 
 
 def test_a_snapshot_keeps_the_steps_values_and_computes_nothing():
-    from amex.core.lazy import Lazy, LazyDict
-
     computed = []
     buffer, values = np.array([0.1, 0.2, 0.3]), [1.0, 2.0]
 
@@ -245,19 +242,31 @@ def _batches(rng):
     yield [amex, dict(reversed(list(amex.items())))]  # another order
     yield [amex, {k: v for k, v in amex.items() if k != "s"}]  # a key missing
     yield [amex, {**amex, "s": 2**1100}]  # beyond doubles: as a step alone does
-    yield [{**amex, "mode": "tail", "converged": True}] * 2  # texts and flags (CR's)
+    # CR's: texts and flags, of every length (1- and 2-byte varints), multi-byte, empty
+    cr = {"mode": "tail", "steps": 40, "converged": True, "cost": 0.5}
+    texts = ["shrink", "", "ü" * 64, "x" * 127, "x" * 300, "hold", "€", "tail"]
+    yield [{**cr, "mode": m, "converged": j % 3 == 0} for j, m in enumerate(texts)]
+    yield [{**cr, "mode": "a", "other": "b" * 200}, {**cr, "mode": "", "other": ""}]
+    yield [cr, {**cr, "converged": np.bool_(True)}]  # numpy's flag: a step at a time
+    yield [cr, {**cr, "converged": 1}]  # a number where a flag is
+    yield [cr, {**cr, "mode": "\udc80"}]  # a lone surrogate: as a step alone does
+    yield [cr, {**cr, "mode": None}]
+    yield [LazyDict(cr), LazyDict({**cr, "mode": "grow"})]  # lazy dicts: CR's
+    yield [LazyDict({**cr, "plan": Lazy(lambda: np.zeros((400, 3)))})] * 2  # one not logged
 
 
 def test_a_batch_is_encoded_as_each_step_alone():
     rng = np.random.default_rng(7)
     for batch in _batches(rng):
         topic = MethodTopic()
-        topic.schema(0.0, {"mode": "", "converged": False, **batch[0], "s": 0.0})
+        first = {"mode": "", "converged": False, "other": "", **dict(dict.items(batch[0]))}
+        first["s"] = 0.0
+        topic.schema(0.0, {k: v for k, v in first.items() if not isinstance(v, Lazy)})
         times = [0.01 * (j + 1) for j in range(len(batch))]
         try:
             snaps = [topic.snapshot(step) for step in batch]
             alone = [topic.encode_snapshot(t, s) for t, s in zip(times, snaps, strict=True)]
-        except (OverflowError, TypeError, struct.error) as error:
+        except (OverflowError, TypeError, UnicodeEncodeError, struct.error) as error:
             with pytest.raises(type(error)):
                 topic.encode_snapshots(times, [topic.snapshot(step) for step in batch])
             continue
@@ -270,11 +279,16 @@ def test_a_batch_is_encoded_as_each_step_alone():
 def test_a_uniform_batch_takes_the_compiled_call(monkeypatch):
     import amex.log.method_topic as MT
 
+    cr = [LazyDict(mode=m, steps=j, ok=j > 1, plan=Lazy(list)) for j, m in enumerate("ab")]
+    topic = MethodTopic()
+    topic.schema(0.0, {"mode": "", "steps": 0, "ok": True})
+    calls = []
+    monkeypatch.setattr(MT.MethodTopic, "encode_snapshot", lambda *a: calls.append(a))
+    assert len(topic.encode_snapshots([0.0, 1.0], [topic.snapshot(step) for step in cr])) == 2
+    assert not calls  # CR's steps: texts, numbers and flags of lazy dicts
     topic = MethodTopic()
     steps = [{"s": 0.1 * j, "y_star": np.full(3, float(j))} for j in range(5)]
     topic.schema(0.0, steps[0])
-    calls = []
-    monkeypatch.setattr(MT.MethodTopic, "encode_snapshot", lambda *a: calls.append(a))
     out = topic.encode_snapshots([0.0, 1.0, 2.0, 3.0, 4.0], steps)
     assert not calls and len(out) == 5
     decoder = FlatDecoder(topic.schema(0.0, steps[0]).descriptor_set(), "amex.MethodInternals")
