@@ -47,6 +47,8 @@ _NUMBER_TYPES = (float, np.float64, int, np.int64)  # written as doubles without
 # The forms of a value in a one-pack message (Recipe.fields): a double, a packed field of
 # doubles, a flag's byte, a text's UTF-8 bytes.
 _NUMBER, _ARRAY, _FLAG, _TEXT = range(4)
+_RAW = 4  # a snapshot's array of doubles, as their bytes (MethodTopic.snapshot)
+_F8 = np.dtype(np.float64)
 
 
 class Recipe(NamedTuple):
@@ -97,6 +99,7 @@ class MethodTopic:
         self.kinds: dict[str, str] | None = None
         self._keys: dict[str, bytes] = {}  # key -> its field's key bytes
         self._recipes: dict[tuple[Any, ...], Recipe] = {}
+        self._snapshot_recipes: dict[tuple[Any, ...], Recipe] = {}  # bytes: an array's doubles
         self._logged: dict[tuple[str, ...], tuple[str, ...]] = {}  # a step's keys -> logged ones
         self._array_keys: tuple[str, ...] = ()  # the schema's keys of kind "array"
 
@@ -142,6 +145,10 @@ class MethodTopic:
         where it runs warm: encoded between the inner steps, AMEX's message cost ~15 us a step,
         three times its time in a loop (issue #29).
         """
+        return self._capture(internals, copy, snapshot=False)
+
+    def _capture(self, internals: dict[str, Any], copy: bool, *, snapshot: bool) -> Captured:
+        """:meth:`capture`; of a :meth:`snapshot`'s values (its doubles' bytes) if ``snapshot``."""
         keys = tuple(internals)
         try:
             logged = self._logged[keys]
@@ -149,10 +156,11 @@ class MethodTopic:
             logged = self._logged[keys] = self._logged_keys(keys)
         values = list(internals.values()) if logged is keys else [internals[k] for k in logged]
         signature = (logged, tuple(map(type, values)))
+        recipes = self._snapshot_recipes if snapshot else self._recipes
         try:
-            recipe = self._recipes[signature]
+            recipe = recipes[signature]
         except KeyError:
-            recipe = self._recipes[signature] = self._recipe(*signature)
+            recipe = recipes[signature] = self._recipe(*signature, snapshot=snapshot)
         if copy:
             for i in recipe.arrays:  # lists and small arrays are copied; larger ones left out
                 value = values[i]
@@ -165,10 +173,12 @@ class MethodTopic:
 
         A shallow copy of the dict (a :class:`~amex.core.lazy.LazyDict`'s lazy values stay
         lazy: they are snapshots of their own), with the small arrays and lists of the schema's
-        array keys copied (a method may reuse its buffers); numbers, flags and texts are
-        immutable. :meth:`encode_snapshot` turns it into the message with the batch, where it
-        runs warm: between the inner steps, :meth:`capture` cost ~8 us a step, about four times
-        its time in a loop (issue #29).
+        array keys copied (a method may reuse its buffers): an array of doubles of shape (k,)
+        as its doubles' bytes (``tobytes``, a third of a copy's time, and the field's data), a
+        method's own ``bytes`` there as None (they are no array: absent either way); numbers,
+        flags and texts are immutable. :meth:`encode_snapshot` turns it into the message with
+        the batch, where it runs warm: between the inner steps, :meth:`capture` cost ~8 us a
+        step, about four times its time in a loop (issue #29).
         """
         if type(internals) is dict:
             snap = internals.copy()
@@ -178,13 +188,18 @@ class MethodTopic:
             snap = dict(internals)
         for key in self._array_keys:
             value = snap.get(key)
-            if type(value) is list or (isinstance(value, np.ndarray) and value.size <= MAX_ARRAY):
+            if type(value) is np.ndarray and value.dtype is _F8 and value.ndim == 1:
+                if value.size <= MAX_ARRAY:  # its doubles' bytes: the copy and the field's data
+                    snap[key] = value.tobytes()
+            elif type(value) is list or (isinstance(value, np.ndarray) and value.size <= MAX_ARRAY):
                 snap[key] = value.copy()
+            elif type(value) is bytes:  # no array (absent): not to be taken for one's doubles
+                snap[key] = None
         return snap
 
     def encode_snapshot(self, t: float, snap: dict[str, Any]) -> bytes:
         """The message of a step at time ``t`` [s] from its :meth:`snapshot`."""
-        return self.encode_captured(t, self.capture(snap, copy=False))
+        return self.encode_captured(t, self._capture(snap, False, snapshot=True))
 
     def encode_snapshots(self, times: list[float], snaps: list[dict[str, Any]]) -> list[bytes]:
         """:meth:`encode_snapshot` of each step of a batch: the same bytes, in one compiled call.
@@ -245,6 +260,13 @@ class MethodTopic:
                 except UnicodeEncodeError:  # (a lone surrogate) as a step alone does
                     return None
                 counts.append(_TEXT_COUNT)
+            elif kind == "array" and types == _BYTES_SET:  # a snapshot's doubles
+                sizes = set(map(len, column))
+                if len(sizes) != 1:
+                    return None
+                (size,) = sizes
+                columns.append(np.frombuffer(b"".join(column)).reshape(k, size // 8))
+                counts.append(size // 8)
             elif kind == "array" and types == _ARRAY_SET:
                 shapes, dtypes = {a.shape for a in column}, {a.dtype for a in column}
                 if len(shapes) != 1 or any(d.kind not in "fiu" for d in dtypes):
@@ -306,15 +328,24 @@ class MethodTopic:
                 parts.append(_encoded(self._keys[key], kinds[key], value))
         return b"".join(parts)
 
-    def _recipe(self, keys: tuple[str, ...], types: tuple[type, ...]) -> Recipe:
-        """The :class:`Recipe` of steps of these keys (all of the schema's) and value types."""
+    def _recipe(
+        self, keys: tuple[str, ...], types: tuple[type, ...], *, snapshot: bool = False
+    ) -> Recipe:
+        """The :class:`Recipe` of steps of these keys (all of the schema's) and value types.
+
+        Of a :meth:`snapshot`'s values if ``snapshot``: ``bytes`` under an array's key are its
+        doubles (a method's own ``bytes`` the snapshot made None).
+        """
         kinds = self.kinds or {}
         converters = tuple(
-            _converter(self._keys[key], kinds[key], value_type)
+            _converter(self._keys[key], kinds[key], value_type, snapshot)
             for key, value_type in zip(keys, types, strict=True)
         )
         arrays = tuple(i for i, kind in enumerate(types) if kind is np.ndarray or kind is list)
-        forms = [_form(kinds[key], value_type) for key, value_type in zip(keys, types, strict=True)]
+        forms = [
+            _form(kinds[key], value_type, snapshot)
+            for key, value_type in zip(keys, types, strict=True)
+        ]
         if any(form != _NUMBER for form in forms):
             if None in forms:  # some value has no form in one pack: the converters
                 return Recipe(converters, arrays, None, ())
@@ -322,7 +353,7 @@ class MethodTopic:
                 (self._keys[key], form) for key, form in zip(keys, forms, strict=True)
                 if form is not None
             )  # fmt: skip
-            sized = tuple(i for i, form in enumerate(forms) if form in (_ARRAY, _TEXT))
+            sized = tuple(i for i, form in enumerate(forms) if form in _SIZED)
             return Recipe(converters, arrays, None, (), fields, {}, sized)
         pairs = [(b"\x09", 0.0)] + [(self._keys[key], 0.0) for key in keys]
         packed = struct.Struct("<" + "".join(f"{len(key)}sd" for key, _ in pairs))
@@ -331,7 +362,9 @@ class MethodTopic:
 
 
 _NUMBER_SET = frozenset(_NUMBER_TYPES)
+_SIZED = (_ARRAY, _TEXT, _RAW)  # the forms packed with their byte lengths
 _FLAG_SET, _TEXT_SET, _ARRAY_SET = frozenset((bool,)), frozenset((str,)), frozenset((np.ndarray,))
+_BYTES_SET = frozenset((bytes,))
 _DICTS = (dict, LazyDict)
 # FlatRows.counts of the fields that are no arrays
 _NUMBER_COUNT, _FLAG_COUNT, _TEXT_COUNT = -1, -2, -3
@@ -430,12 +463,17 @@ def encode_flat_rows(
     bounds[len(times)] = i
 
 
-def _form(kind: str, value_type: type) -> int | None:
-    """A value's form in a one-pack message (:data:`_NUMBER`, ...), None if it has none."""
+def _form(kind: str, value_type: type, snapshot: bool = False) -> int | None:
+    """A value's form in a one-pack message (:data:`_NUMBER`, ...), None if it has none.
+
+    ``snapshot``: the value is a :meth:`MethodTopic.snapshot`'s (``bytes``: an array's doubles).
+    """
     if kind == "number" and value_type in _NUMBER_TYPES:
         return _NUMBER
     if kind == "array" and value_type is np.ndarray:
         return _ARRAY
+    if kind == "array" and value_type is bytes and snapshot:
+        return _RAW
     if kind == "boolean" and value_type is bool:
         return _FLAG
     if kind == "string" and value_type is str:
@@ -459,6 +497,8 @@ def _vector_pack(recipe: Recipe, t: float, values: list[Any]) -> bytes | None:
         value = values[i]
         if type(value) is str:
             data = value.encode()
+        elif type(value) is bytes:  # a snapshot's doubles
+            data = value
         else:
             if value.ndim != 1 or value.size > MAX_ARRAY or value.dtype.kind not in "fiu":
                 return None
@@ -488,7 +528,7 @@ def _vector_packer(
     """
     layout, template, size = ["<1sd"], [b"\x09", 0.0], iter(sizes)
     for key, form in fields:
-        if form in (_ARRAY, _TEXT):
+        if form in _SIZED:
             n = next(size)
             prefix = key + P.varint(n)
             value = f"{n}s"
@@ -504,8 +544,11 @@ def _absent(value: Any) -> bytes:
     return b""
 
 
-def _converter(key: bytes, kind: str, value_type: type) -> Converter:
-    """The converter of values of ``value_type`` under a schema ``kind`` (field key ``key``)."""
+def _converter(key: bytes, kind: str, value_type: type, snapshot: bool = False) -> Converter:
+    """The converter of values of ``value_type`` under a schema ``kind`` (field key ``key``).
+
+    ``snapshot``: of a :meth:`MethodTopic.snapshot`'s values (``bytes``: an array's doubles).
+    """
     if value_type is type(None):
         return _absent
     if kind == "number" and value_type in _NUMBER_TYPES:
@@ -516,6 +559,8 @@ def _converter(key: bytes, kind: str, value_type: type) -> Converter:
         return lambda value: yes if value else no
     if kind == "array" and value_type is np.ndarray:
         return lambda value: _array(key, value)
+    if kind == "array" and value_type is bytes and snapshot:
+        return lambda value: key + P.varint(len(value)) + value
     return lambda value: _encoded(key, kind, value)  # texts, other types: the general rule
 
 

@@ -40,6 +40,7 @@ def _variants(rng):
     yield {**_first(), "y_star": np.array([], dtype=float)}
     yield {**_first(), "y_star": np.array([1.0, 2.0], dtype=np.float32)}
     yield {**_first(), "y_star": [0.1, 0.2]}  # a list
+    yield {**_first(), "y_star": b"\x00" * 24}  # bytes: no array, absent
     yield {**_first(), "y_star": None, "maybe": 1.5}
     yield {"mode": "grow", "new_key": 1.0, "s": 0.5}  # keys missing, a new one, another order
     yield {"t": 99.0, "s": 0.5}  # a key named t is not the time
@@ -212,6 +213,10 @@ def test_a_snapshot_keeps_the_steps_values_and_computes_nothing():
     assert type(plain) is dict and plain["y_star"] is not buffer and plain["listed"] is not values
 
 
+class _Subclass(np.ndarray):
+    pass
+
+
 def _batches(rng):
     """Batches of steps: uniform ones (one compiled call) and ones that are not."""
     amex = {"s": 0.25, "delta_g": np.float64(0.5), "delta_y": 1.0, "y_star": np.zeros(6),
@@ -242,6 +247,12 @@ def _batches(rng):
     yield [amex, dict(reversed(list(amex.items())))]  # another order
     yield [amex, {k: v for k, v in amex.items() if k != "s"}]  # a key missing
     yield [amex, {**amex, "s": 2**1100}]  # beyond doubles: as a step alone does
+    # a snapshot takes doubles as their bytes: other arrays, and a method's bytes, are not
+    yield [amex, {**amex, "y_star": b"\x00" * 48}]  # a method's bytes: no array, absent
+    yield [{**amex, "y_star": np.full(6, 1.5, dtype=">f8")}] * 2  # big-endian doubles
+    yield [amex, {**amex, "y_star": np.arange(6)}]  # doubles, then ints
+    yield [amex, {**amex, "y_star": np.zeros(12)[::2]}]  # a strided view of doubles
+    yield [amex, {**amex, "y_star": np.zeros(6).view(_Subclass)}]  # an ndarray subclass
     # CR's: texts and flags, of every length (1- and 2-byte varints), multi-byte, empty
     cr = {"mode": "tail", "steps": 40, "converged": True, "cost": 0.5}
     texts = ["shrink", "", "ü" * 64, "x" * 127, "x" * 300, "hold", "€", "tail"]
@@ -291,5 +302,8 @@ def test_a_uniform_batch_takes_the_compiled_call(monkeypatch):
     topic.schema(0.0, steps[0])
     out = topic.encode_snapshots([0.0, 1.0, 2.0, 3.0, 4.0], steps)
     assert not calls and len(out) == 5
+    snaps = [topic.snapshot(step) for step in steps]  # their doubles as bytes
+    assert type(snaps[0]["y_star"]) is bytes
+    assert topic.encode_snapshots([0.0, 1.0, 2.0, 3.0, 4.0], snaps) == out and not calls
     decoder = FlatDecoder(topic.schema(0.0, steps[0]).descriptor_set(), "amex.MethodInternals")
     assert decoder.decode(out[3]) == {"t": 3.0, "s": 0.1 * 3, "y_star": [3.0] * 3}
