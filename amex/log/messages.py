@@ -218,6 +218,13 @@ def metadata_record(values: dict[str, Any]) -> dict[str, str]:
 
 def jsonable(value: Any) -> Any:
     """Numbers stay numbers (non-finite -> null), arrays become lists, None stays null."""
+    kind = type(value)
+    if kind is float:  # the common types first, without the isinstance chain
+        return value if math.isfinite(value) else None
+    if kind is str or kind is int or kind is bool:
+        return value
+    if kind is list:
+        return [jsonable(v) for v in value]
     if value is None or isinstance(value, (str, bool)):
         return value
     if isinstance(value, (int, np.integer)):

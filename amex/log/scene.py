@@ -19,6 +19,7 @@ messages as SDK objects (the tests' oracle).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -62,26 +63,16 @@ class SceneChannels:
         self.plan = _scene_channel("/scene/plan", context)
         self.reference = _scene_channel("/scene/reference", context)
         self._reference_points = W.line_points(reference)  # constant: encoded once
-        self._reference_line = W.line_encoding("reference", M.REFERENCE_COLOR, 2.0)
-        self._path_line = W.line_encoding("tcp_path", M.path_color(method), 3.0)
-        self._plan_line = W.line_encoding("plan", M.plan_color(method), 3.0)
         self._radii = np.asarray(obstacle_radii, dtype=float)
+        look = _look(method, tuple(self._radii.tolist()))  # the same for a run's every log
+        self._reference_line, self._path_line, self._plan_line = look.lines
         self._obstacles_move = obstacles_move
         self._max_line_points = max_line_points
         self._plan_rows: dict[int, np.ndarray | None] = {}  # plan length -> the rows drawn
         self._path_points = bytearray()  # the executed path's points, encoded as they come
-        self._goal_entity = SceneEntity(frame_id=WORLD_FRAME, id="goal").encode()
-        self._obstacle_entity = SceneEntity(frame_id=WORLD_FRAME, id="obstacles").encode()
-        self._goal_spheres = (
-            W.sphere_encoding(2 * SUCCESS_RADIUS, M.GOAL_COLOR),
-            W.sphere_encoding(0.01, M.GOAL_DOT_COLOR),
-        )
-        self._obstacle_spheres = [
-            W.sphere_encoding(2 * r, M.OBSTACLE_COLOR) for r in self._radii.tolist()
-        ]
         self._world_key: np.ndarray | None = None  # what counted as motion when last drawn
         self._since = np.array([np.nan])  # [s] when last drawn (NaN: never)
-        self._world_layouts: dict[int, _WorldLayout] = {}
+        self._world_layouts = look.world_layouts
         self.next_reference = 0.0  # [s] when the reference line is due again
 
     def channels(self) -> list[Any]:
@@ -146,11 +137,17 @@ class SceneChannels:
             return self._world_layouts[drawn]
         except KeyError:
             pass
-        big, dot = self._goal_spheres
-        entities = [(self._goal_entity, [(big, 0), (dot, 0)])]
+        goal = SceneEntity(frame_id=WORLD_FRAME, id="goal").encode()
+        big = W.sphere_encoding(2 * SUCCESS_RADIUS, M.GOAL_COLOR)
+        dot = W.sphere_encoding(0.01, M.GOAL_DOT_COLOR)
+        entities = [(goal, [(big, 0), (dot, 0)])]
         if len(self._radii):
-            spheres = [(self._obstacle_spheres[j], 1 + j) for j in range(drawn)]
-            entities.append((self._obstacle_entity, spheres))
+            obstacle = SceneEntity(frame_id=WORLD_FRAME, id="obstacles").encode()
+            radii = self._radii.tolist()
+            spheres = [
+                (W.sphere_encoding(2 * radii[j], M.OBSTACLE_COLOR), 1 + j) for j in range(drawn)
+            ]
+            entities.append((obstacle, spheres))
         encoding = W.spheres_encoding(entities)
         size = len(encoding.entities) + len(encoding.spheres)  # and what a step adds
         size += 20 * len(encoding.entity_ends) + 36 * len(encoding.sphere_entity)
@@ -243,6 +240,28 @@ class SceneChannels:
         except KeyError:
             rows = self._plan_rows[k] = M.point_rows(k, self._max_line_points)
             return rows
+
+
+class _Look(NamedTuple):
+    """What the scenes of logs of one method and obstacles' radii share (:func:`_look`)."""
+
+    lines: tuple[W.LineEncoding, W.LineEncoding, W.LineEncoding]  # reference, path, plan
+    world_layouts: dict[int, _WorldLayout]  # drawn obstacles -> the world update's layout
+
+
+@functools.lru_cache(maxsize=16)
+def _look(method: str, radii: tuple[float, ...]) -> _Look:
+    """The lines' encodings and the world updates' layouts (filled as they are first drawn).
+
+    Pure functions of ``method`` (the colours) and ``radii``: made once for a run's logs
+    instead of once per log (~0.1 ms of the SDK's encoders a log, issue #29).
+    """
+    lines = (
+        W.line_encoding("reference", M.REFERENCE_COLOR, 2.0),
+        W.line_encoding("tcp_path", M.path_color(method), 3.0),
+        W.line_encoding("plan", M.plan_color(method), 3.0),
+    )
+    return _Look(lines, {})
 
 
 class _WorldLayout(NamedTuple):
