@@ -1,14 +1,14 @@
 """The outer steps a log keeps until it writes them: numbers in rows, encoded a batch at a time.
 
 :class:`StepBatch` keeps what the log needs of each step (:meth:`StepBatch.add`): the simulator's
-buffers (q_ddot, tau) and the command's parts are copied into preallocated rows (a task-space
-command, the usual one, by two slice copies); q, q_dot, y, y_dot and the goal, which the
-episode loop makes anew at every outer step for the observation and the logs
-(:mod:`amex.sim.episode`), are kept as they are, with the step's time and which command parts
-it has, and put into their rows a batch at a time (:meth:`StepBatch.fill`: one concatenation
-each per batch instead of a copy each per step, which ran cold between the inner steps); the
-rest (obstacles, command of another shape, internals) is kept as the step gave it, copied
-where the loop or the method may reuse a buffer.
+buffers (q_ddot, tau) are copied as their doubles' bytes and the command's parts into
+preallocated rows (a task-space command, the usual one, by two slice copies); q, q_dot, y,
+y_dot and the goal, which the episode loop makes anew at every outer step for the observation
+and the logs (:mod:`amex.sim.episode`), are kept as they are, with the step's time and which
+command parts it has, and put into their rows a batch at a time (:meth:`StepBatch.fill`: one
+concatenation each per batch instead of a copy each per step, which ran cold between the inner
+steps); the rest (obstacles, command of another shape, internals) is kept as the step gave it,
+copied where the loop or the method may reuse a buffer.
 :meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
 (:func:`amex.log.wire.encode_steps`) and ``/tcp`` and ``/goal`` (:func:`encode_numbers`) in two
 compiled calls: the per-step Python is left with the SDK's writes (issue #29: one compiled call
@@ -67,7 +67,7 @@ class StepBatch:
     Attributes:
         count: the rows filled.
         t, ns, q, v, qacc, tau, y, yd, goal: the rows (only the first :attr:`count` are valid;
-            t, ns, q, v, y, yd, goal and parts once :meth:`fill` ran).
+            all but the command's once :meth:`fill` ran).
         kept: per row, its :class:`Kept`.
     """
 
@@ -83,7 +83,8 @@ class StepBatch:
         self.command = np.zeros((capacity, 2 * (m + n)))
         self.parts = np.zeros(capacity, dtype=np.int64)  # bit j: the command has part j
         self.kept: list[Kept] = []
-        self._fresh: list[tuple[Any, ...]] = []  # per row: t, q, q_dot, y, y_dot, goal, parts
+        # per row: t, q, q_dot, y, y_dot, goal, parts, and the bytes of q_ddot and tau
+        self._fresh: list[tuple[Any, ...]] = []
         self._m = m
         ends = self._offsets
         self._slices = [slice(a, b) for a, b in zip(ends[:-1], ends[1:], strict=True)]
@@ -110,8 +111,9 @@ class StepBatch:
         """
         i = self.count
         t, state, obs, command, _, tau, qacc = step
-        self.qacc[i] = qacc  # the simulator's buffers: copied here
-        self.tau[i] = tau
+        # the simulator's buffers: copied here, as their doubles' bytes (a third of a row copy)
+        qacc = qacc.tobytes() if qacc.dtype is _F8 else np.asarray(qacc, float).tobytes()
+        tau = tau.tobytes() if tau.dtype is _F8 else np.asarray(tau, float).tobytes()
         packed = None
         m = self._m
         if len(command) == 4 and command[2] is None and command[3] is None:  # y*, y_dot*
@@ -128,7 +130,7 @@ class StepBatch:
         if plan is not None and not isinstance(plan, Lazy):  # a lazy one is a snapshot
             plan = np.array(plan, dtype=float)
         self.kept.append(tuple.__new__(Kept, (obs.obstacles, packed, method, plan)))
-        self._fresh.append((t, state.q, state.v, obs.y, obs.yd, obs.goal, parts))
+        self._fresh.append((t, state.q, state.v, obs.y, obs.yd, obs.goal, parts, qacc, tau))
         self.count = i + 1
 
     def _command_row(
@@ -170,9 +172,11 @@ class StepBatch:
         """Fill the rows from the arrays :meth:`add` kept (before :meth:`clear`); their count."""
         k = self.count
         if k and self._fresh:
-            t, q, v, y, yd, goal, parts = zip(*self._fresh, strict=True)
+            t, q, v, y, yd, goal, parts, qacc, tau = zip(*self._fresh, strict=True)
             self.t[:k] = t
             self.parts[:k] = parts
+            self.qacc[:k] = np.frombuffer(b"".join(qacc)).reshape(self.qacc[:k].shape)
+            self.tau[:k] = np.frombuffer(b"".join(tau)).reshape(self.tau[:k].shape)
             # into the first k rows, contiguous: one concatenation each (np.stack makes a view
             # of every array first, ~3 times the time)
             np.concatenate(q, out=self.q[:k].reshape(-1))
@@ -220,6 +224,7 @@ class StepBatch:
         return Encoded(out[: start + end].tobytes(), joints, numbers)
 
 
+_F8 = np.dtype(np.float64)
 _TASK_PARTS = 0b0011  # a row's command parts, bit j for part j: y*, y_dot*
 _PACKED_PARTS = -1  # not in the rows: written from its kept message
 
