@@ -82,3 +82,20 @@ def test_a_kept_command_is_copied_so_a_reused_buffer_changes_no_row():
     assert messages[0]["y_star"] == first[0].tolist()
     assert messages[0]["yd_star"] == first[1].tolist()
     assert messages[1]["y_star"] == [7.0] * M and messages[1]["yd_star"] == [8.0] * M
+
+
+def test_the_rows_hold_each_steps_values_bit_for_bit():
+    batch = StepBatch(4, N, M, None)
+    steps = [_step(0.01 * (j + 1), COMMANDS["task"]) for j in range(3)]
+    steps[1] = steps[1]._replace(tau=np.full(N, 0.1, dtype=np.float32))  # another dtype: doubles
+    steps[2] = steps[2]._replace(qacc=np.array([-0.0, np.nan, np.inf, 1e-320, 1.0, 2.0, 3.0]))
+    for step in steps:
+        batch.add(step, {}, None)
+    k = batch.fill()
+    assert k == 3
+    for j, step in enumerate(steps):
+        for rows, value in ((batch.q, step.state.q), (batch.v, step.state.v),
+                            (batch.qacc, step.qacc), (batch.tau, step.tau),
+                            (batch.y, step.observation.y), (batch.yd, step.observation.yd),
+                            (batch.goal, step.observation.goal[:3])):  # fmt: skip
+            assert rows[j].tobytes() == np.asarray(value, dtype=float).tobytes()
