@@ -184,7 +184,8 @@ def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> Ep
     method, scenario = _method(setup), _scenario(setup, env)  # before the log's file is made
     metadata = {"task": setup.task, "method": method.name, "env": env, "seed": setup.seed}
     args = (log_path, context.robot, context.plan, scenario, metadata)
-    with EpisodeLogger(*args, compression=setup.log_compression) as logger:
+    options = {"compression": setup.log_compression, "fresh_steps": method.fresh_steps}
+    with EpisodeLogger(*args, **options) as logger:
         return _episode(setup, method, scenario, logger)
 
 

@@ -63,6 +63,8 @@ class StepBatch:
         m: task-space coordinates (y, y_dot each; the TCP's position and z-axis for m = 6).
         encoding: the constant parts of ``/tf`` and ``/joint_states``, None if those are built
             as the SDK's objects (then :attr:`Encoded.joints` is None).
+        fresh: the method's :attr:`~amex.methods.base.Method.fresh_steps`: a task-space
+            command's arrays are kept as they are, put into the rows by :meth:`fill`.
 
     Attributes:
         count: the rows filled.
@@ -71,8 +73,12 @@ class StepBatch:
         kept: per row, its :class:`Kept`.
     """
 
-    def __init__(self, capacity: int, n: int, m: int, encoding: StepEncoding | None) -> None:
+    def __init__(
+        self, capacity: int, n: int, m: int, encoding: StepEncoding | None, *, fresh: bool = False
+    ) -> None:
         self.count = 0
+        self._fresh_commands = fresh
+        self._task: list[tuple[int, Any, Any]] = []  # (row, y*, y_dot*) kept as given
         self.t = np.zeros(capacity)
         self.ns = np.zeros(capacity, dtype=np.int64)
         self.q, self.v, self.qacc, self.tau = (np.zeros((capacity, n)) for _ in range(4))
@@ -119,9 +125,12 @@ class StepBatch:
         if len(command) == 4 and command[2] is None and command[3] is None:  # y*, y_dot*
             y, yd = command[0], command[1]
             if y is not None and yd is not None and len(y) == m and len(yd) == m:
-                row, slices = self.command[i], self._slices
-                row[slices[0]] = y
-                row[slices[1]] = yd
+                if self._fresh_commands:
+                    self._task.append((i, y, yd))
+                else:
+                    row, slices = self.command[i], self._slices
+                    row[slices[0]] = y
+                    row[slices[1]] = yd
                 parts = _TASK_PARTS
             else:
                 parts, packed = self._command_row(i, t, command)
@@ -167,6 +176,7 @@ class StepBatch:
         self.count = 0
         self.kept = []
         self._fresh = []
+        self._task = []
 
     def fill(self) -> int:
         """Fill the rows from the arrays :meth:`add` kept (before :meth:`clear`); their count."""
@@ -177,6 +187,11 @@ class StepBatch:
             self.parts[:k] = parts
             self.qacc[:k] = np.frombuffer(b"".join(qacc)).reshape(self.qacc[:k].shape)
             self.tau[:k] = np.frombuffer(b"".join(tau)).reshape(self.tau[:k].shape)
+            if self._task:  # a fresh method's task-space commands, as they were given
+                rows, ys, yds = zip(*self._task, strict=True)
+                index, m = list(rows), self._m
+                self.command[index, :m] = np.concatenate(ys).reshape(-1, m)
+                self.command[index, m : 2 * m] = np.concatenate(yds).reshape(-1, m)
             # into the first k rows, contiguous: one concatenation each (np.stack makes a view
             # of every array first, ~3 times the time)
             np.concatenate(q, out=self.q[:k].reshape(-1))

@@ -201,7 +201,9 @@ class MethodTopic:
         """The message of a step at time ``t`` [s] from its :meth:`snapshot`."""
         return self.encode_captured(t, self._capture(snap, False, snapshot=True))
 
-    def encode_snapshots(self, times: list[float], snaps: list[dict[str, Any]]) -> list[bytes]:
+    def encode_snapshots(
+        self, times: list[float], snaps: list[dict[str, Any]], *, raw: bool = False
+    ) -> list[bytes]:
         """:meth:`encode_snapshot` of each step of a batch: the same bytes, in one compiled call.
 
         Where every step has the first step's keys in its order and each logged value is, at
@@ -210,11 +212,15 @@ class MethodTopic:
         the DMP's, CR's steps): the values are gathered a key at a time (:class:`FlatRows`) and
         the messages written by :func:`encode_flat_rows`, ~0.5 us a step against ~4.7 us for
         AMEX's alone. Any other batch (None, numpy's flags, another size) is encoded a step at
-        a time.
+        a time. ``raw``: the steps are the method's ``internals()`` themselves, no snapshots (a
+        method of :attr:`~amex.methods.base.Method.fresh_steps`): ``bytes`` are no doubles.
         """
-        rows = self._flat_rows(snaps)
+        rows = self._flat_rows(snaps, raw)
         if rows is None:
-            return [self.encode_snapshot(t, snap) for t, snap in zip(times, snaps, strict=True)]
+            return [
+                self.encode_captured(t, self._capture(snap, False, snapshot=not raw))
+                for t, snap in zip(times, snaps, strict=True)
+            ]
         k = len(snaps)
         sizes = [9 if n < 0 else 10 + 8 * n for n in rows.counts.tolist()]  # and the keys
         row = 9 + (int(rows.key_ends[-1]) if len(rows.key_ends) else 0) + sum(sizes)
@@ -225,7 +231,7 @@ class MethodTopic:
         edges = bounds.tolist()
         return [data[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
 
-    def _flat_rows(self, snaps: list[dict[str, Any]]) -> FlatRows | None:
+    def _flat_rows(self, snaps: list[dict[str, Any]], raw: bool = False) -> FlatRows | None:
         """A batch's fields and values for :func:`encode_flat_rows`; None if it has none."""
         if not snaps:
             return None
@@ -260,7 +266,7 @@ class MethodTopic:
                 except UnicodeEncodeError:  # (a lone surrogate) as a step alone does
                     return None
                 counts.append(_TEXT_COUNT)
-            elif kind == "array" and types == _BYTES_SET:  # a snapshot's doubles
+            elif kind == "array" and types == _BYTES_SET and not raw:  # a snapshot's doubles
                 sizes = set(map(len, column))
                 if len(sizes) != 1:
                     return None

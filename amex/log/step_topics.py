@@ -49,14 +49,22 @@ class StepTopics:
         constants: the run's :class:`~amex.log.constants.LogConstants`.
         channels: the channels of ``/tf``, ``/joint_states``, ``/tcp``, ``/goal`` and
             ``/command`` (``foxglove.Channel``), created by the logger in its topic order.
+        fresh: the method's :attr:`~amex.methods.base.Method.fresh_steps`: its steps'
+            ``internals()`` are kept as they are, without a snapshot.
 
     Attributes:
         method_channel: ``/method``'s channel once the first step made it, else None.
     """
 
     def __init__(
-        self, context: foxglove.Context, constants: LogConstants, channels: dict[str, Any]
+        self,
+        context: foxglove.Context,
+        constants: LogConstants,
+        channels: dict[str, Any],
+        *,
+        fresh: bool = False,
     ) -> None:
+        self._fresh = fresh
         self._context = context
         self._constants = constants
         self._channels = {topic: channel.base for topic, channel in channels.items()}
@@ -74,7 +82,7 @@ class StepTopics:
         if method.kinds is None:
             self.method_channel = method.schema(t, internals).channel("/method", self._context)
             self._channels["/method"] = self.method_channel.base
-        return method.snapshot(internals)
+        return internals if self._fresh else method.snapshot(internals)
 
     def messages(self, batch: StepBatch, k: int, kept: list[Kept]) -> StepMessages:
         """The messages of the first ``k`` rows of ``batch`` (and their ``kept``), encoded.
@@ -106,7 +114,8 @@ class StepTopics:
         method = channels.get("/method")
         if method is not None:
             log = method.log
-            encoded_method = self._method.encode_snapshots(times, [step.method for step in kept])
+            snaps = [step.method for step in kept]
+            encoded_method = self._method.encode_snapshots(times, snaps, raw=self._fresh)
             for out, data in zip(steps, encoded_method, strict=True):
                 out.append((log, data))
         return StepMessages(steps, times, stamps, batch.y[:k, :3].tolist())

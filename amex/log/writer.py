@@ -159,6 +159,8 @@ class EpisodeLogger:
         path_every: outer steps between updates of the executed-path and plan lines.
         max_line_points: plan lines are decimated to at most this many points.
         compression: how the chunks are compressed, a key of :data:`COMPRESSIONS`.
+        fresh_steps: the method's :attr:`~amex.methods.base.Method.fresh_steps`: its steps'
+            command and ``internals()`` are kept without copies.
     """
 
     def __init__(
@@ -172,6 +174,7 @@ class EpisodeLogger:
         path_every: int = 5,
         max_line_points: int = 100,
         compression: str = DEFAULT_COMPRESSION,
+        fresh_steps: bool = False,
     ) -> None:
         options = write_options(compression)  # first: a bad value makes no file
         self.path = Path(path)
@@ -223,9 +226,9 @@ class EpisodeLogger:
             for topic, schema in M.json_channel_schemas(int(np.shape(plan.y)[1])).items()
         }
         step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
-        self._topics = StepTopics(ctx, self._constants, step_channels)
+        self._topics = StepTopics(ctx, self._constants, step_channels, fresh=fresh_steps)
         self._batch = StepBatch(  # steps kept, not yet written
-            BATCH, robot.nv, np.shape(plan.y)[1], self._constants.encoding
+            BATCH, robot.nv, np.shape(plan.y)[1], self._constants.encoding, fresh=fresh_steps
         )
         self._previous_handler: Any = None
         self._install_sigterm()

@@ -135,6 +135,7 @@ class AMEX(Method):
     """
 
     name = "amex"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = AMEXConfig
 
     needs_motion = True  # Eq. 8 measures progress as the reference's remaining distance

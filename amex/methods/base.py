@@ -113,6 +113,13 @@ class Method(abc.ABC):
     needs_robot: ClassVar[bool] = False
     #: Whether the reference must move at least :data:`MIN_REFERENCE_TRAVEL` (e.g. AMEX).
     needs_motion: ClassVar[bool] = False
+    #: Whether every step's command and :meth:`internals` are new objects that neither the
+    #: method nor anything else changes later: a new dict at each call, its arrays and lists,
+    #: the command's arrays and the inputs of its lazy values new or never written in place.
+    #: A recorder may then keep them as they are (the log does, without copies: issue #29).
+    #: False by default: the steps of a method that reuses its buffers are copied. Every
+    #: built-in method says True, and tests/methods/test_fresh_steps.py checks each one.
+    fresh_steps: ClassVar[bool] = False
 
     def __init__(
         self,

@@ -82,6 +82,7 @@ class CBFIK(Method):
     """
 
     name = "cbf_ik"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = CBFIKConfig
     needs_robot = True
     config: CBFIKConfig

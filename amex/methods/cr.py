@@ -182,6 +182,7 @@ class CR(Method):
     """
 
     name = "cr"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = CRConfig
     needs_robot = True
     config: CRConfig

@@ -115,6 +115,7 @@ class DMP(Method):
     """
 
     name = "dmp"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = DMPConfig
     config: DMPConfig
 

@@ -266,6 +266,7 @@ class MPPI(Method):
     """
 
     name = "mppi"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = MPPIConfig
     needs_robot = True
     config: MPPIConfig

@@ -185,6 +185,7 @@ class RMPflow(Method):
     """
 
     name = "rmpflow"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = RMPflowConfig
     needs_robot = True
     config: RMPflowConfig

@@ -38,6 +38,7 @@ class Track(Method):
     """
 
     name = "track"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = TrackConfig
 
     def __init__(

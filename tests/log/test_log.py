@@ -373,3 +373,36 @@ def test_layout_points_the_urdf_layer_at_the_logs_urdf(logged, tmp_path):
     urdf = layout["configById"]["3D!amex"]["layers"]["robot-urdf"]
     assert urdf["filePath"].endswith("ur5_robot.urdf") and Path(urdf["filePath"]).exists()
     assert len(layout["configById"]["Plot!qdd"]["paths"]) == 6
+
+
+@pytest.mark.parametrize("method", ["amex", "cr", "dmp"])
+def test_a_fresh_methods_steps_kept_without_copies_give_the_same_log(method, tmp_path):
+    """``fresh_steps``: the command and internals kept as given write the copies' messages."""
+    from amex.app.compose import load_config
+    from amex.experiment.runner import _scenario, run_setup_with, setup
+
+    config = load_config(["task=4", f"method={method}", "max_time=1.2"])
+    run = setup(config, prepare(config))
+    logs = []
+    for fresh in (False, True):
+        path = tmp_path / f"{fresh}.mcap"
+        scenario, context = _scenario(run, 0), run.context
+        with EpisodeLogger(
+            path, context.robot, context.plan, scenario, {"method": method}, fresh_steps=fresh
+        ) as logger:
+            run_setup_with(run, 0, logger)
+        with open(path, "rb") as f:
+            logs.append([(c.topic, m.log_time, m.data) for _, c, m in make_reader(f).iter_messages(
+                log_time_order=False)])  # fmt: skip
+    timing = ("/episode", "/method") if method == "cr" else ("/episode",)  # CR's solve_time
+    copied, fresh = ([m for m in log if m[0] not in timing] for log in logs)
+    assert len(copied) > 700 and copied == fresh
+    assert [m[:2] for m in logs[0]] == [m[:2] for m in logs[1]]
+    internals = [
+        [
+            {k: v for k, v in m.data.items() if k != "solve_time"}
+            for m in read_log(p).messages["/method"]
+        ]
+        for p in (tmp_path / "False.mcap", tmp_path / "True.mcap")
+    ]
+    assert len(internals[0]) > 100 and internals[0] == internals[1]

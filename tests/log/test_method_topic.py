@@ -285,6 +285,8 @@ def test_a_batch_is_encoded_as_each_step_alone():
         assert together == alone, batch[:2]
         for t, step, data in zip(times, batch, together, strict=True):
             assert data == topic.reference_encode(t, step)
+        # a fresh method's internals themselves, no snapshots: the same messages
+        assert topic.encode_snapshots(times, list(batch), raw=True) == together
 
 
 def test_a_uniform_batch_takes_the_compiled_call(monkeypatch):
@@ -307,3 +309,15 @@ def test_a_uniform_batch_takes_the_compiled_call(monkeypatch):
     assert topic.encode_snapshots([0.0, 1.0, 2.0, 3.0, 4.0], snaps) == out and not calls
     decoder = FlatDecoder(topic.schema(0.0, steps[0]).descriptor_set(), "amex.MethodInternals")
     assert decoder.decode(out[3]) == {"t": 3.0, "s": 0.1 * 3, "y_star": [3.0] * 3}
+
+
+def test_a_fresh_methods_bytes_are_no_array():
+    topic = MethodTopic()
+    topic.schema(0.0, {"s": 0.5, "y_star": np.zeros(6)})
+    steps = [{"s": 0.5, "y_star": b"\x01" * 48}] * 3  # bytes at every step: absent
+    times = [0.0, 0.1, 0.2]
+    raw = topic.encode_snapshots(times, steps, raw=True)
+    assert raw == [topic.reference_encode(t, step) for t, step in zip(times, steps, strict=True)]
+    schema = topic.schema(0.0, {"s": 0.5, "y_star": np.zeros(6)})
+    decoder = FlatDecoder(schema.descriptor_set(), "amex.MethodInternals")
+    assert decoder.decode(raw[0])["y_star"] is None

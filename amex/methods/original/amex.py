@@ -86,6 +86,7 @@ class AMEXOriginal(Method):
     """
 
     name = "amex"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = AMEXConfig
     needs_motion = True  # Eq. 8, as in ours
 

@@ -45,6 +45,7 @@ class CROriginal(Method):
     """
 
     name = "cr"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = CRConfig
     needs_robot = True
     config: CRConfig

@@ -46,6 +46,7 @@ class DMPOriginal(Method):
     """
 
     name = "dmp"
+    fresh_steps = True  # (Method.fresh_steps; tests/methods/test_fresh_steps.py)
     config_class = DMPConfig
     config: DMPConfig
 
