@@ -69,8 +69,8 @@ class LazyRows(Lazy):
                 may then compute rows of several of them in one call, on their rows stacked
                 (the log's scene, a batch's drawn plans at a time). None: no group.
         """
-        lazy = cls(len(rows), lambda index: compute(rows if index is None else rows[index]))
-        lazy.source, lazy.map, lazy.group = rows, compute, group
+        lazy = object.__new__(_Rowwise)  # no closures: made at every step of CR and MPPI
+        lazy.length, lazy.source, lazy.map, lazy.group = len(rows), rows, compute, group
         return lazy
 
     def take(self, index: Any) -> Any:
@@ -78,7 +78,21 @@ class LazyRows(Lazy):
         return self.rows(index)
 
 
-_LAZY = (Lazy, LazyRows)
+class _Rowwise(LazyRows):
+    """:meth:`LazyRows.rowwise`'s: ``compute`` and ``rows`` map the rows of its ``source``."""
+
+    __slots__ = ()
+
+    def compute(self) -> Any:  # type: ignore[override]
+        """All the rows, ``map(source)`` (the base's slot of a callable, as a method)."""
+        return self.map(self.source)  # type: ignore[misc]
+
+    def rows(self, index: Any) -> Any:  # type: ignore[override]
+        """The rows ``index`` (None: all), ``map(source[index])``."""
+        return self.map(self.source if index is None else self.source[index])  # type: ignore[misc]
+
+
+_LAZY = (Lazy, LazyRows, _Rowwise)
 
 
 class LazyDict(dict):  # type: ignore[type-arg]

@@ -184,8 +184,8 @@ def run_setup(setup: EpisodeSetup, env: int, log_path: Path | None = None) -> Ep
     method, scenario = _method(setup), _scenario(setup, env)  # before the log's file is made
     metadata = {"task": setup.task, "method": method.name, "env": env, "seed": setup.seed}
     args = (log_path, context.robot, context.plan, scenario, metadata)
-    options = {"compression": setup.log_compression, "fresh_steps": method.fresh_steps}
-    with EpisodeLogger(*args, **options) as logger:
+    fresh = method.fresh_steps  # its steps are kept without copies
+    with EpisodeLogger(*args, compression=setup.log_compression, fresh_steps=fresh) as logger:
         return _episode(setup, method, scenario, logger)
 
 

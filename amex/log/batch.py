@@ -118,8 +118,8 @@ class StepBatch:
         i = self.count
         t, state, obs, command, _, tau, qacc = step
         # the simulator's buffers: copied here, as their doubles' bytes (a third of a row copy)
-        qacc = qacc.tobytes() if qacc.dtype is _F8 else np.asarray(qacc, float).tobytes()
-        tau = tau.tobytes() if tau.dtype is _F8 else np.asarray(tau, float).tobytes()
+        qacc_bytes = qacc.tobytes() if qacc.dtype is _F8 else np.asarray(qacc, float).tobytes()
+        tau_bytes = tau.tobytes() if tau.dtype is _F8 else np.asarray(tau, float).tobytes()
         packed = None
         m = self._m
         if len(command) == 4 and command[2] is None and command[3] is None:  # y*, y_dot*
@@ -139,7 +139,9 @@ class StepBatch:
         if plan is not None and not isinstance(plan, Lazy):  # a lazy one is a snapshot
             plan = np.array(plan, dtype=float)
         self.kept.append(tuple.__new__(Kept, (obs.obstacles, packed, method, plan)))
-        self._fresh.append((t, state.q, state.v, obs.y, obs.yd, obs.goal, parts, qacc, tau))
+        self._fresh.append(
+            (t, state.q, state.v, obs.y, obs.yd, obs.goal, parts, qacc_bytes, tau_bytes)
+        )
         self.count = i + 1
 
     def _command_row(

@@ -50,3 +50,26 @@ def test_computed_once_and_compares_as_a_dict():
     assert d == plain and plain == d  # noqa: SIM300 (the reflected comparison)
     assert d["plan"] is d["plan"] and calls == [1]
     assert repr(d) == repr({"a": 1, "plan": [1.0, 2.0]})
+
+
+@pytest.mark.parametrize("read", [read for read in READS if read != "json"])  # (arrays)
+def test_a_rowwise_value_is_computed_by_every_read_and_its_rows_alone(read):
+    import numpy as np
+
+    from amex.core.lazy import LazyRows
+
+    calls: list[int] = []
+    knots = np.arange(12.0).reshape(4, 3)
+
+    def double(rows):
+        calls.append(len(rows))
+        return rows * 2.0
+
+    lazy = LazyRows.rowwise(double, knots, group=("double",))
+    assert isinstance(lazy, LazyRows) and isinstance(lazy, Lazy)
+    assert (lazy.length, lazy.source, lazy.map, lazy.group) == (4, knots, double, ("double",))
+    np.testing.assert_array_equal(lazy.take(np.array([3, 1])), knots[[3, 1]] * 2.0)
+    assert calls == [2]
+    d = LazyDict(a=1, plan=lazy)
+    out = READS[read](d)
+    assert np.array_equal(out["plan"], knots * 2.0) and calls == [2, 4]
