@@ -40,14 +40,15 @@ why the log ended early). Values are JSON texts.
 Cost (issue #29, ``python -m amex.app.bench_log``): the messages are encoded without the SDK's
 message objects (:mod:`amex.log.wire`, :mod:`amex.log.scene_wire`: the same bytes). A step only
 keeps what its messages need (:meth:`~amex.log.batch.StepBatch.add`, a few copies, and
-``/method``'s snapshot); every :data:`BATCH` steps, each kind of message is encoded for the whole
-batch in turn and then all are written in one loop of the SDK's calls, so that each loop runs
-warm instead of once between every 10 inner steps. A plan given as a
-:class:`~amex.core.lazy.LazyRows` is computed there, at the knots drawn alone. What the run shares
-(link transforms, ``/reference``, the robot's record, the schemas) is made once per run
-(:mod:`amex.log.constants`); the scene's world update is decided and encoded for the batch in
-two compiled calls, and the executed path's points are encoded once, as they come. What
-remains is mostly the SDK's writing (~2 us per message, six to nine messages a step, its lz4
+``/method``'s snapshot; neither the command's nor the internals' copies for a method of
+:attr:`~amex.methods.base.Method.fresh_steps`); every :data:`BATCH` steps, each kind of
+message is encoded for the whole batch in turn and then all are written in one loop of the
+SDK's calls, so that each loop runs warm instead of once between every 10 inner steps. A plan
+given as a :class:`~amex.core.lazy.LazyRows` is computed there, at the knots drawn alone. What
+the run shares (link transforms, ``/reference``, the robot's record, the schemas) is made once
+per run (:mod:`amex.log.constants`); the scene's world update is decided and encoded for the
+batch in two compiled calls, and the executed path's points are encoded once, as they come.
+What remains is mostly the SDK's writing (~2 us per message, six to nine messages a step, its lz4
 chunks included) and the steps' values taken between the inner steps, where they run cold
 (docs/results/speed.md gives the measured cost).
 
