@@ -219,11 +219,12 @@ class SceneChannels:
                 rows = self._rows(plan.length)
                 parts.append(plan.source if rows is None else plan.source[rows])
             points = plans[members[0]].map(np.concatenate(parts))
-            start = 0
-            for j, part in zip(members, parts, strict=True):
-                end = start + len(part)
-                out[j] = self._plan_message(times[j], points[start:end], None)
-                start = end
+            if isinstance(points, np.ndarray) and points.ndim == 2 and points.shape[1] >= 3:
+                ends = np.cumsum([len(part) for part in parts]).tolist()
+                stamps = [round(times[j] * 1e9) for j in members]
+                updates = W.line_updates(self._plan_line, stamps, points, ends)
+                for j, update in zip(members, updates, strict=True):
+                    out[j] = update
         return out
 
     def _plan_message(self, t: float, plan: Any, rows: np.ndarray | None) -> bytes | None:

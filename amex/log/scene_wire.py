@@ -130,6 +130,106 @@ def line_update(encoding: LineEncoding, ns: int, points: bytes | bytearray) -> b
     return _field(_ENTITIES, entity)
 
 
+def line_updates(
+    encoding: LineEncoding, stamps: list[int], points: np.ndarray, ends: list[int]
+) -> list[bytes]:
+    """:func:`line_update` of each line, ``points[ends[j - 1]:ends[j]]`` at ``stamps[j]`` [ns].
+
+    One compiled call (:func:`encode_lines`) for a batch's lines (CR's, MPPI's drawn plans),
+    the same bytes as each line alone.
+
+    Args:
+        encoding: the lines' constant parts.
+        stamps: per line, its timestamp [ns].
+        points: the lines' points one after the other, shape (k, >= 3) [m].
+        ends: per line, where its points end in ``points`` (non-decreasing, the last k).
+    """
+    xyz = np.ascontiguousarray(np.asarray(points, dtype=float)[:, :3])
+    n = len(ends)
+    constant = len(encoding.head) + len(encoding.entity) + len(encoding.tail)
+    out = np.empty(29 * len(xyz) + n * (constant + 40), dtype=np.uint8)
+    bounds = np.empty(n + 1, dtype=np.int64)
+    encode_lines(
+        np.asarray(stamps, dtype=np.int64),
+        xyz,
+        np.asarray(ends, dtype=np.int64),
+        np.frombuffer(encoding.entity, dtype=np.uint8),
+        np.frombuffer(encoding.head, dtype=np.uint8),
+        np.frombuffer(encoding.tail, dtype=np.uint8),
+        out,
+        bounds,
+    )
+    data = out[: bounds[n]].tobytes()
+    edges = bounds.tolist()
+    return [data[a:b] for a, b in zip(edges[:-1], edges[1:], strict=True)]
+
+
+@numba.njit(cache=True)
+def _copy_bytes(out: np.ndarray, i: int, block: np.ndarray) -> int:
+    for b in range(len(block)):
+        out[i + b] = block[b]
+    return i + len(block)
+
+
+@numba.njit(cache=True)
+def encode_lines(
+    stamps: np.ndarray,
+    xyz: np.ndarray,
+    ends: np.ndarray,
+    entity: np.ndarray,
+    head: np.ndarray,
+    tail: np.ndarray,
+    out: np.ndarray,
+    bounds: np.ndarray,
+) -> None:
+    """Each line's SceneUpdate (:func:`line_updates`), one after the other in ``out``.
+
+    ``SceneUpdate.entities`` holding a ``SceneEntity``: its timestamp, ``entity`` (frame_id
+    and id) and ``lines`` holding a ``LinePrimitive``: ``head``, the points (each a field 5
+    holding a Point3 of its non-zero coordinates) and ``tail``; lengths as varints.
+
+    Args:
+        stamps: per line, its timestamp [ns], shape (n,).
+        xyz: the points, shape (k, 3) [m].
+        ends: per line, where its points end in ``xyz``, shape (n,).
+        entity: :attr:`LineEncoding.entity`'s bytes.
+        head: :attr:`LineEncoding.head`'s bytes.
+        tail: :attr:`LineEncoding.tail`'s bytes.
+        out: the buffer (large enough).
+        bounds: set to where each line's message starts, and the end, shape (n + 1,).
+    """
+    i = 0
+    start = 0
+    for j in range(len(ends)):
+        bounds[j] = i
+        end = ends[j]
+        size = 0  # the points' bytes
+        for r in range(start, end):
+            size += 2
+            for c in range(3):
+                if xyz[r, c] != 0.0:
+                    size += 9
+        line = len(head) + size + len(tail)
+        seconds, nanos = stamps[j] // 1_000_000_000, stamps[j] % 1_000_000_000
+        stamp = 0
+        if seconds:
+            stamp += 1 + varint_size(seconds)
+        if nanos:
+            stamp += 1 + varint_size(nanos)
+        body = 1 + varint_size(stamp) + stamp + len(entity) + 1 + varint_size(line) + line
+        out[i] = 0x12  # SceneUpdate.entities
+        i = varint_field(out, i + 1, body)
+        i = write_timestamp(out, i, seconds, nanos)
+        i = _copy_bytes(out, i, entity)
+        out[i] = 0x5A  # SceneEntity.lines
+        i = varint_field(out, i + 1, line)
+        i = _copy_bytes(out, i, head)
+        i += _write_vectors(xyz[start:end], _POINT, out[i:])
+        i = _copy_bytes(out, i, tail)
+        start = end
+    bounds[len(ends)] = i
+
+
 def line_points(xyz: np.ndarray) -> bytes:
     """The points of a line (rows of ``xyz``, (k, >= 3)) as ``LinePrimitive.points`` fields."""
     return encode_vectors(xyz, _POINT)

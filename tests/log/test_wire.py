@@ -201,12 +201,30 @@ def test_a_batchs_plans_of_one_group_are_drawn_as_each_alone(robot):
     plans = [cr_plan(knots(k)) for k in (1, 40, 100, 101, 250, 401)]
     plans += [None, np.zeros((3, 2)), rng.normal(size=(150, 3)), Lazy(lambda: np.ones((5, 3)))]
     plans += [LazyRows.rowwise(lambda a: a[:, :3] * 2.0, rng.normal(size=(120, 4)))]  # no group
-    plans += [cr_plan(knots(300))]
+    plans += [cr_plan(knots(300)), cr_plan(knots(0))]
+    flat = (len, 2)  # a group whose map gives no (k, >= 3) points: nothing drawn
+    plans += [LazyRows.rowwise(lambda a: a[:, :2], rng.normal(size=(k, 3)), flat) for k in (4, 9)]
     times = [0.05 * j for j in range(len(plans))]
     scene = _scene([0.05])
     alone = [scene.plan_update(t, plan) for t, plan in zip(times, plans, strict=True)]
     assert scene.plan_updates(times, plans) == alone
-    assert sum(update is None for update in alone) == 2  # None and the (3, 2) array
+    assert sum(update is None for update in alone) == 4  # None, the (3, 2) array, the flat ones
+
+
+def test_a_batchs_lines_are_each_line_alone():
+    rng = np.random.default_rng(8)
+    encoding = W.line_encoding("plan", M.plan_color("cr"), 3.0)
+    sizes = [0, 1, 5, 100, 0, 37]
+    points = rng.normal(size=(sum(sizes), 4))  # a fourth column is not drawn
+    points[2] = [0.0, -0.0, np.nan, 1.0]
+    points[3] = [np.inf, 0.0, -np.inf, 0.0]
+    points[10:20, 1] = 0.0
+    ends = np.cumsum(sizes).tolist()
+    stamps = [0, 1, 999_999_999, 1_000_000_000, 12_345_678_901, 2**40]
+    lines = W.line_updates(encoding, stamps, points, ends)
+    starts = [0, *ends[:-1]]
+    for line, ns, a, b in zip(lines, stamps, starts, ends, strict=True):
+        assert line == W.line_update(encoding, ns, W.line_points(points[a:b]))
 
 
 def test_a_cr_log_writes_each_steps_topics_in_order_and_the_plan_at_its_drawn_knots(tmp_path):
