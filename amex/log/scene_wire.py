@@ -33,7 +33,13 @@ from foxglove.messages import (
 )
 
 from amex.log.frames import IDENTITY, WORLD_FRAME
-from amex.log.wire import double_field, varint_field, varint_size, write_timestamp
+from amex.log.wire import (
+    double_field,
+    timestamp_size,
+    varint_field,
+    varint_size,
+    write_timestamp,
+)
 
 _ENTITIES = b"\x12"  # SceneUpdate.entities (field 2)
 _SPHERES = b"\x4a"  # SceneEntity.spheres (field 9)
@@ -205,17 +211,10 @@ def encode_lines(
         end = ends[j]
         size = 0  # the points' bytes
         for r in range(start, end):
-            size += 2
-            for c in range(3):
-                if xyz[r, c] != 0.0:
-                    size += 9
+            size += 2 + _position_size(xyz[r])
         line = len(head) + size + len(tail)
         seconds, nanos = stamps[j] // 1_000_000_000, stamps[j] % 1_000_000_000
-        stamp = 0
-        if seconds:
-            stamp += 1 + varint_size(seconds)
-        if nanos:
-            stamp += 1 + varint_size(nanos)
+        stamp = timestamp_size(seconds, nanos)
         body = 1 + varint_size(stamp) + stamp + len(entity) + 1 + varint_size(line) + line
         out[i] = 0x12  # SceneUpdate.entities
         i = varint_field(out, i + 1, body)
@@ -369,11 +368,7 @@ def encode_spheres(
     for j in range(len(rows)):
         r = rows[j]
         seconds, nanos = ns[r] // 1_000_000_000, ns[r] % 1_000_000_000
-        stamp = 0
-        if seconds:
-            stamp += 1 + varint_size(seconds)
-        if nanos:
-            stamp += 1 + varint_size(nanos)
+        stamp = timestamp_size(seconds, nanos)
         bounds[j, 0] = i
         s = 0
         for e in range(len(entity_ends)):

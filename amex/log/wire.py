@@ -136,15 +136,21 @@ def double_field(out: np.ndarray, i: int, tag: int, value: float, scratch: np.nd
 
 
 @numba.njit(cache=True)
-def write_timestamp(out: np.ndarray, i: int, seconds: int, nanos: int) -> int:
-    """The timestamp field (number 1): present, with its non-zero fields."""
+def timestamp_size(seconds: int, nanos: int) -> int:
+    """The bytes of a timestamp's body (:func:`write_timestamp`'s, its non-zero fields)."""
     size = 0
     if seconds:
         size += 1 + varint_size(seconds)
     if nanos:
         size += 1 + varint_size(nanos)
+    return size
+
+
+@numba.njit(cache=True)
+def write_timestamp(out: np.ndarray, i: int, seconds: int, nanos: int) -> int:
+    """The timestamp field (number 1): present, with its non-zero fields."""
     out[i] = _TIMESTAMP
-    i = varint_field(out, i + 1, size)
+    i = varint_field(out, i + 1, timestamp_size(seconds, nanos))
     if seconds:
         out[i] = 0x08
         i = varint_field(out, i + 1, seconds)
