@@ -42,7 +42,7 @@ class Kept(NamedTuple):
 
     obstacles: np.ndarray  # the observation's (a new array each step)
     command: bytes | None  # the /command message of a command of another shape, else None
-    method: dict[str, Any]  # what the /method message needs (MethodTopic.snapshot)
+    method: dict[str, Any]  # what /method needs: its snapshot, or a fresh method's internals
     plan: Any  # where the scene draws it, internals()["plan"]: copied, or its Lazy; else None
 
 
@@ -111,7 +111,8 @@ class StepBatch:
         Args:
             step: the outer step.
             method: what its ``/method`` message needs
-                (:meth:`~amex.log.method_topic.MethodTopic.snapshot`).
+                (:meth:`~amex.log.method_topic.MethodTopic.snapshot`, or the internals
+                themselves of a method of :attr:`~amex.methods.base.Method.fresh_steps`).
             plan: its plan to draw (copied here; a :class:`~amex.core.lazy.Lazy` is kept as it
                 is, to be computed when the batch is written), or None.
         """
