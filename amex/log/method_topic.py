@@ -17,8 +17,8 @@ the recipe is one ``struct`` pack of ``t`` and all the fields, keys included: th
 the converters' concatenation. Where every value is a number, a flag, a text or a small array
 (AMEX's steps, CR's), it is one pack per the arrays' sizes and the texts' lengths. A logger
 encodes a batch of steps at a time (:meth:`MethodTopic.encode_snapshots`): where every step has
-the same keys and only numbers and arrays of one size each (AMEX's, the DMP's), in one compiled
-call (:func:`encode_flat_rows`), the same bytes.
+the same keys and only numbers, flags, texts and arrays of one size each (AMEX's, the DMP's,
+CR's), in one compiled call (:func:`encode_flat_rows`), the same bytes.
 :meth:`MethodTopic.reference_encode` converts each value by the general rule (:func:`_encoded`),
 the oracle (tests/log/test_method_topic.py compares them).
 """
