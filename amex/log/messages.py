@@ -213,7 +213,30 @@ def viewer_schema_problems(schema: Any, where: str = "schema") -> list[str]:
 
 def metadata_record(values: dict[str, Any]) -> dict[str, str]:
     """An MCAP metadata record of ``values``: each key's value as a JSON text (:func:`jsonable`)."""
-    return {str(k): json.dumps(jsonable(v)) for k, v in values.items()}
+    return {str(k): json_text(v) for k, v in values.items()}
+
+
+_TEXT = json.encoder.encode_basestring_ascii  # what json.dumps writes for a str
+
+
+def json_text(value: Any) -> str:
+    """``json.dumps(jsonable(value))``, its text: a number, a flag, a text or None directly.
+
+    Those four are written as ``json.dumps`` writes them (``repr`` of a finite float or an int,
+    its ASCII escapes of a text), without its call (~2 us each, ~40 in an episode's outcome).
+    """
+    kind = type(value)
+    if kind is float:
+        return float.__repr__(value) if math.isfinite(value) else "null"
+    if kind is str:
+        return _TEXT(value)
+    if kind is bool:
+        return "true" if value else "false"
+    if kind is int:
+        return int.__repr__(value)
+    if value is None:
+        return "null"
+    return json.dumps(jsonable(value))
 
 
 def jsonable(value: Any) -> Any:

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable
+from itertools import chain
 from typing import Any, NamedTuple
 
 import numba
@@ -273,6 +274,15 @@ class MethodTopic:
                 (size,) = sizes
                 columns.append(np.frombuffer(b"".join(column)).reshape(k, size // 8))
                 counts.append(size // 8)
+            elif kind == "array" and types == _ARRAY_SET and (flat := _doubles(column)) is not None:
+                sizes = set(map(len, column))  # (all of one dimension)
+                if len(sizes) != 1:
+                    return None
+                (size,) = sizes
+                if size > MAX_ARRAY:
+                    return None
+                columns.append(flat.reshape(k, size))
+                counts.append(size)
             elif kind == "array" and types == _ARRAY_SET:
                 shapes, dtypes = {a.shape for a in column}, {a.dtype for a in column}
                 if len(shapes) != 1 or any(d.kind not in "fiu" for d in dtypes):
@@ -288,9 +298,10 @@ class MethodTopic:
             key_ends.append(len(fields))
         values = np.concatenate(columns, axis=1) if columns else np.zeros((k, 0))
         if texts:  # row by row, the fields' texts in order
-            blob = b"".join(b"".join(row) for row in zip(*texts, strict=True))
-            lengths = np.array([[len(text) for text in row] for row in zip(*texts, strict=True)])
-            text_ends = np.cumsum(lengths, axis=None).reshape(k, len(texts))
+            ordered = texts[0] if len(texts) == 1 else [*chain(*zip(*texts, strict=True))]
+            blob = b"".join(ordered)
+            lengths = np.fromiter(map(len, ordered), dtype=np.int64, count=len(ordered))
+            text_ends = np.cumsum(lengths).reshape(k, len(texts))
         else:
             blob, text_ends = b"", np.zeros((k, 0), dtype=np.int64)
         return FlatRows(
@@ -374,6 +385,19 @@ _BYTES_SET = frozenset((bytes,))
 _DICTS = (dict, LazyDict)
 # FlatRows.counts of the fields that are no arrays
 _NUMBER_COUNT, _FLAG_COUNT, _TEXT_COUNT = -1, -2, -3
+
+
+def _doubles(column: list[np.ndarray]) -> np.ndarray | None:
+    """The arrays of ``column`` one after the other, if all are native doubles of one dimension.
+
+    One concatenation without a cast (a quarter of the time of the shapes' and the dtypes'
+    checks, AMEX's batch); None for any other column, which the general checks take.
+    """
+    try:
+        flat = np.concatenate(column, dtype=_F8, casting="no")
+    except (TypeError, ValueError):  # another dtype or byte order; a scalar array; mixed shapes
+        return None
+    return flat if flat.ndim == 1 else None
 
 
 class FlatRows(NamedTuple):

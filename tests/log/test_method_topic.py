@@ -238,6 +238,12 @@ def _batches(rng):
     # not uniform: a step at a time (the same bytes all the same)
     yield [amex, {**amex, "y_star": np.zeros(5)}]  # another size
     yield [amex, {**amex, "y_star": np.zeros(65)}]  # too large: left out
+    yield [{**amex, "y_star": np.zeros(65)}] * 2  # too large at every step
+    yield [amex, {**amex, "y_star": np.array(0.5)}]  # a scalar array
+    yield [{**amex, "y_star": np.zeros((1, 6))}] * 2  # (1, k) at every step
+    # three text fields in a row, then a number between texts
+    yield [{"mode": m, "other": m * 2, "label": "é" + m, "s": 0.5} for m in ("a", "", "xyz")]
+    yield [{"mode": m, "s": j, "other": "-" + m} for j, m in enumerate(("q", "rr", ""))]
     yield [amex, {**amex, "y_star": np.zeros((2, 3))}]  # not (k,)
     yield [amex, {**amex, "y_star": np.array([True] * 6)}]  # flags
     yield [amex, {**amex, "s": None}]
@@ -270,7 +276,8 @@ def test_a_batch_is_encoded_as_each_step_alone():
     rng = np.random.default_rng(7)
     for batch in _batches(rng):
         topic = MethodTopic()
-        first = {"mode": "", "converged": False, "other": "", **dict(dict.items(batch[0]))}
+        first = {"mode": "", "converged": False, "other": "", "label": "",
+                 **dict(dict.items(batch[0]))}  # fmt: skip
         first["s"] = 0.0
         topic.schema(0.0, {k: v for k, v in first.items() if not isinstance(v, Lazy)})
         times = [0.01 * (j + 1) for j in range(len(batch))]
@@ -321,3 +328,16 @@ def test_a_fresh_methods_bytes_are_no_array():
     schema = topic.schema(0.0, {"s": 0.5, "y_star": np.zeros(6)})
     decoder = FlatDecoder(schema.descriptor_set(), "amex.MethodInternals")
     assert decoder.decode(raw[0])["y_star"] is None
+
+
+def test_a_batch_of_arrays_the_schema_does_not_take_is_encoded_as_each_step_alone():
+    # the schema is the first step's: later batches may all have arrays it does not log
+    for later in (np.zeros((1, 6)), np.zeros(65), np.arange(6), np.zeros(12)[::2], np.array(2.0)):
+        topic = MethodTopic()
+        topic.schema(0.0, {"s": 0.5, "y_star": np.zeros(6)})
+        steps = [{"s": 0.1 * j, "y_star": later} for j in range(3)]
+        times = [0.0, 0.1, 0.2]
+        alone = [topic.reference_encode(t, step) for t, step in zip(times, steps, strict=True)]
+        assert topic.encode_snapshots(times, steps, raw=True) == alone, later
+        snaps = [topic.snapshot(step) for step in steps]
+        assert topic.encode_snapshots(times, snaps) == alone, later
