@@ -8,6 +8,7 @@ from amex.app.bench_log import ReplayRecorder, log_overhead, main, sdk_floor
 from amex.experiment.config import RunConfig
 from amex.experiment.runner import prepare, run_one, run_setup_with, setup
 from amex.log import read_log
+from amex.log.writer import BATCH
 from amex.methods import METHODS
 
 
@@ -50,7 +51,7 @@ def messages(path):
 
 @pytest.mark.parametrize("batch", [None, 1])
 def test_the_replaying_recorder_writes_the_logs_messages_in_the_episode(tmp_path, batch):
-    config = RunConfig(task=3, max_time=0.6)
+    config = RunConfig(task=3, max_time=1.5)  # more steps than a batch
     config.method = METHODS["amex"].config_class()
     run = setup(config, prepare(config))
     path = tmp_path / "episode.mcap"
@@ -65,12 +66,12 @@ def test_the_replaying_recorder_writes_the_logs_messages_in_the_episode(tmp_path
     again = read_log(tmp_path / "again.mcap")
     assert again.outcome == read_log(path).outcome and not again.damage
     assert sorted(messages(tmp_path / "again.mcap")) == sorted(messages(path))
-    # what was written before each step: at every step, or a batch of 50 steps at a time
+    # what was written before each step: at every step, or a batch (BATCH steps) at a time
     written = sorted(set(logs))
-    assert len(logs) > 50 and 0 < logs[-1] < len(messages(path))
+    assert len(logs) > BATCH and 0 < logs[-1] < len(messages(path))
     if batch == 1:
         assert len(written) == len(logs)
     else:
-        assert written == [0, logs[50]] and logs[49] == 0 < logs[50]
+        assert written == [0, logs[BATCH]] and logs[BATCH - 1] == 0 < logs[BATCH]
     with pytest.raises(ValueError, match="valid: an integer >= 1"):
         ReplayRecorder(path, tmp_path / "x.mcap", 0)
