@@ -8,11 +8,7 @@ and the logs (:mod:`amex.sim.episode`), are kept as they are, with the step's ti
 command parts it has, and put into their rows a batch at a time (:meth:`StepBatch.fill`: one
 concatenation each per batch instead of a copy each per step, which ran cold between the inner
 steps); the rest (obstacles, command of another shape, internals) is kept as the step gave it,
-copied where the loop or the method may reuse a buffer. A method of
-:attr:`~amex.methods.base.Method.fresh_steps` reuses none, so its steps are held as they come
-(the step, its ``/method`` values, its plan, q_ddot's and tau's bytes) and put into their rows
-by :meth:`StepBatch.fill`, in a loop (issue #29: AMEX's ``add`` went from 1.35 to 0.8 ms an
-episode, its ``fill`` up by about as much; measured on 2026-12-07, the net is within noise).
+copied where the loop or the method may reuse a buffer.
 :meth:`StepBatch.encode` then writes every row's ``/tf`` and ``/joint_states``
 (:func:`amex.log.wire.encode_steps`) and ``/tcp`` and ``/goal`` (:func:`encode_numbers`) in two
 compiled calls: the per-step Python is left with the SDK's writes (issue #29: one compiled call
@@ -83,8 +79,6 @@ class StepBatch:
         self.count = 0
         self._fresh_commands = fresh
         self._task: list[tuple[int, Any, Any]] = []  # (row, y*, y_dot*) kept as given
-        # a fresh method's steps as add() got them: (step, method, plan, q_ddot's, tau's bytes)
-        self._held: list[tuple[Any, ...]] = []
         self.t = np.zeros(capacity)
         self.ns = np.zeros(capacity, dtype=np.int64)
         self.q, self.v, self.qacc, self.tau = (np.zeros((capacity, n)) for _ in range(4))
@@ -122,21 +116,11 @@ class StepBatch:
             plan: its plan to draw (copied here; a :class:`~amex.core.lazy.Lazy` is kept as it
                 is, to be computed when the batch is written), or None.
         """
+        i = self.count
         t, state, obs, command, _, tau, qacc = step
         # the simulator's buffers: copied here, as their doubles' bytes (a third of a row copy)
         qacc_bytes = qacc.tobytes() if qacc.dtype is _F8 else np.asarray(qacc, float).tobytes()
         tau_bytes = tau.tobytes() if tau.dtype is _F8 else np.asarray(tau, float).tobytes()
-        if self._fresh_commands:  # the rest is the step's own: kept as it is, until fill()
-            self._held.append((step, method, plan, qacc_bytes, tau_bytes))
-        else:
-            self._keep(self.count, step, method, plan, qacc_bytes, tau_bytes)
-        self.count += 1
-
-    def _keep(
-        self, i: int, step: StepRecord, method: dict[str, Any], plan: Any, qacc: bytes, tau: bytes
-    ) -> None:
-        """Put step ``i``'s values and command into row ``i`` and :attr:`kept` (module notes)."""
-        t, state, obs, command = step[:4]
         packed = None
         m = self._m
         if len(command) == 4 and command[2] is None and command[3] is None:  # y*, y_dot*
@@ -156,7 +140,10 @@ class StepBatch:
         if plan is not None and not isinstance(plan, Lazy):  # a lazy one is a snapshot
             plan = np.array(plan, dtype=float)
         self.kept.append(tuple.__new__(Kept, (obs.obstacles, packed, method, plan)))
-        self._fresh.append((t, state.q, state.v, obs.y, obs.yd, obs.goal, parts, qacc, tau))
+        self._fresh.append(
+            (t, state.q, state.v, obs.y, obs.yd, obs.goal, parts, qacc_bytes, tau_bytes)
+        )
+        self.count = i + 1
 
     def _command_row(
         self, i: int, t: float, command: tuple[np.ndarray | None, ...]
@@ -193,15 +180,10 @@ class StepBatch:
         self.kept = []
         self._fresh = []
         self._task = []
-        self._held = []
 
     def fill(self) -> int:
         """Fill the rows from the arrays :meth:`add` kept (before :meth:`clear`); their count."""
         k = self.count
-        if self._held:  # a fresh method's steps, as add() held them
-            for i, held in enumerate(self._held):
-                self._keep(i, *held)
-            self._held = []
         if k and self._fresh:
             t, q, v, y, yd, goal, parts, qacc, tau = zip(*self._fresh, strict=True)
             self.t[:k] = t
