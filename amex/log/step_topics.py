@@ -28,14 +28,17 @@ class StepMessages(NamedTuple):
     """A batch's per-step messages (:meth:`StepTopics.messages`).
 
     Attributes:
-        steps: per step, its messages in the log's order, each as (its channel's ``log``, its
-            bytes); the logger appends the scene's.
+        logs: the ``log`` of each per-step topic's channel, in the log's order: ``/tf``,
+            ``/joint_states``, ``/tcp``, ``/goal``, ``/command``, ``/method``.
+        columns: per topic of :attr:`logs`, each step's message (bytes); the logger writes a
+            step's in this order and then the scene's.
         times: per step, its time [s].
         stamps: per step, its time [ns] (every message's log time and timestamp).
         tcps: per step, the TCP position [m] (the scene's executed path).
     """
 
-    steps: list[list[tuple[Any, bytes]]]
+    logs: tuple[Any, ...]
+    columns: tuple[list[bytes], ...]
     times: list[float]
     stamps: list[int]
     tcps: list[list[float]]
@@ -88,41 +91,39 @@ class StepTopics:
         """The messages of the first ``k`` rows of ``batch`` (and their ``kept``), encoded.
 
         Each kind for all the rows in a row (the batch's compiled encoders, then ``/method``),
-        so that each loop runs warm; the logger adds the scene's and writes them (class notes).
+        so that each loop runs warm, and kept as one column per topic: the logger adds the
+        scene's and writes them a step at a time (class notes).
         """
         encoded = batch.encode(k)
         data = encoded.data
         times, stamps = batch.t[:k].tolist(), batch.ns[:k].tolist()
-        numbers = encoded.numbers.tolist()
         channels = self._channels
-        tf, joint_states = channels["/tf"].log, channels["/joint_states"].log
-        tcp, goal, command = channels["/tcp"].log, channels["/goal"].log, channels["/command"].log
-        steps: list[list[tuple[Any, bytes]]] = []
         if encoded.joints is not None:
-            for a, b, c in encoded.joints.tolist():
-                steps.append([(tf, data[a:b]), (joint_states, data[b:c])])
+            joints = encoded.joints.tolist()
+            tfs = [data[a:b] for a, b, _ in joints]
+            states = [data[b:c] for _, b, c in joints]
         else:
-            for i in range(k):
-                q, v, qacc, tau = batch.q[i], batch.v[i], batch.qacc[i], batch.tau[i]
-                steps.append(self._joints_generic(q, v, qacc, tau, stamps[i]))
-        for out, (a, b, c, d), step in zip(steps, numbers, kept, strict=True):
-            out += (
-                (tcp, data[a:b]),
-                (goal, data[b:c]),
-                (command, data[c:d] if step.command is None else step.command),
-            )
-        method = channels.get("/method")
-        if method is not None:
-            log = method.log
-            snaps = [step.method for step in kept]
-            encoded_method = self._method.encode_snapshots(times, snaps, raw=self._fresh)
-            for out, data in zip(steps, encoded_method, strict=True):
-                out.append((log, data))
-        return StepMessages(steps, times, stamps, batch.y[:k, :3].tolist())
+            pairs = [
+                self._joints_generic(batch.q[i], batch.v[i], batch.qacc[i], batch.tau[i], ns)
+                for i, ns in enumerate(stamps)
+            ]
+            tfs, states = [tf for tf, _ in pairs], [state for _, state in pairs]
+        numbers = encoded.numbers.tolist()
+        tcps = [data[a:b] for a, b, _, _ in numbers]
+        goals = [data[b:c] for _, b, c, _ in numbers]
+        commands = [
+            data[c:d] if step.command is None else step.command
+            for (_, _, c, d), step in zip(numbers, kept, strict=True)
+        ]
+        snaps = [step.method for step in kept]
+        methods = self._method.encode_snapshots(times, snaps, raw=self._fresh)
+        logs = tuple(channels[topic].log for topic in _TOPICS)
+        columns = (tfs, states, tcps, goals, commands, methods)
+        return StepMessages(logs, columns, times, stamps, batch.y[:k, :3].tolist())
 
     def _joints_generic(
         self, q: np.ndarray, v: np.ndarray, qacc: np.ndarray, tau: np.ndarray, ns: int
-    ) -> list[tuple[Any, bytes]]:
+    ) -> tuple[bytes, bytes]:
         """``/tf`` and ``/joint_states`` as the SDK's objects (a transform of no compiled kind)."""
         stamp = Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)  # sim_stamp(t)
         tf = self._constants.links.message(q, stamp).encode()
@@ -131,6 +132,8 @@ class StepTopics:
             JointState(name=n, position=a, velocity=b, acceleration=c, effort=d)
             for n, a, b, c, d in zip(self._constants.joint_names, qs, vs, qdd, taus, strict=False)
         ]
-        message = JointStates(timestamp=stamp, joints=joints)
-        channels = self._channels
-        return [(channels["/tf"].log, tf), (channels["/joint_states"].log, message.encode())]
+        return tf, JointStates(timestamp=stamp, joints=joints).encode()
+
+
+#: The per-step topics, in the order a step writes them (:attr:`StepMessages.logs`).
+_TOPICS = ("/tf", "/joint_states", "/tcp", "/goal", "/command", "/method")

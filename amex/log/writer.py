@@ -67,6 +67,7 @@ file, restores the previous handler and re-delivers the signal to it.
 
 from __future__ import annotations
 
+import bisect
 import functools
 import os
 import signal
@@ -401,33 +402,49 @@ class EpisodeLogger:
         batch.clear()  # first: a SIGTERM's close() meanwhile writes none of them twice
         if count:
             encoded = self._topics.messages(batch, count, kept)
-            steps, times, stamps = encoded.steps, encoded.times, encoded.stamps
+            times, stamps = encoded.times, encoded.stamps
             first = self._steps
             drawn = range((-first) % every, count, every)  # the steps that draw path and plan
             updates = scene.plan_updates([times[i] for i in drawn], [kept[i].plan for i in drawn])
-            plans = dict(zip(drawn, updates, strict=True))
             world_log, path_log = scene.world.base.log, scene.path.base.log
             plan_log, reference_log = scene.plan.base.log, scene.reference.base.log
             worlds = scene.world_updates(
                 times, batch.ns[:count], batch.goal[:count], [step.obstacles for step in kept]
             )
-            for i, (t, tcp, out) in enumerate(zip(times, encoded.tcps, steps, strict=True)):
-                update = worlds.get(i)
-                if update is not None:
-                    out.append((world_log, update))
-                if i in plans:
-                    scene.add_path_point(tcp[0], tcp[1], tcp[2])
-                    path = scene.path_update(t)
-                    if path is not None:
-                        out.append((path_log, path))
-                    plan = plans[i]
-                    if plan is not None:
-                        out.append((plan_log, plan))
-                if t >= scene.next_reference:
-                    out.append((reference_log, scene.reference_update(t)))
-            for out, ns in zip(steps, stamps, strict=True):
-                for log, data in out:
-                    log(data, ns)
+            # per step, its scene messages in the log's order (world, path, plan, reference)
+            extras: list[list[tuple[Any, bytes]] | None] = [None] * count
+            for i, update in worlds.items():
+                extras[i] = [(world_log, update)]
+            tcps = encoded.tcps
+            for i, plan in zip(drawn, updates, strict=True):
+                tcp = tcps[i]
+                scene.add_path_point(tcp[0], tcp[1], tcp[2])
+                path = scene.path_update(times[i])
+                out = extras[i]
+                if out is None:
+                    out = extras[i] = []
+                if path is not None:
+                    out.append((path_log, path))
+                if plan is not None:
+                    out.append((plan_log, plan))
+            i = bisect.bisect_left(times, scene.next_reference)
+            while i < count:
+                out = extras[i]
+                if out is None:
+                    out = extras[i] = []
+                out.append((reference_log, scene.reference_update(times[i])))
+                i = bisect.bisect_left(times, scene.next_reference, i + 1)
+            tf, joint_states, tcp_log, goal, command, method = encoded.logs
+            for ns, a, b, c, d, e, f, extra in zip(stamps, *encoded.columns, extras, strict=True):
+                tf(a, ns)
+                joint_states(b, ns)
+                tcp_log(c, ns)
+                goal(d, ns)
+                command(e, ns)
+                method(f, ns)
+                if extra is not None:
+                    for log, data in extra:
+                        log(data, ns)
             self._steps = first + count
             self._t = times[-1]
             tcp = encoded.tcps[-1]
