@@ -110,15 +110,25 @@ class SceneChannels:
         """
         k = len(times)
         goal = np.asarray(goals, dtype=float).reshape(k, -1)[:, :3]
-        centers = np.asarray(obstacles, dtype=float).reshape(k, -1)
-        keys = np.concatenate([goal, centers], axis=1) if self._obstacles_move else goal
+        if self._obstacles_move:  # their centres count as motion: every row's
+            centers = np.asarray(obstacles, dtype=float).reshape(k, -1)
+            keys = np.concatenate([goal, centers], axis=1)
+        else:
+            centers, keys = None, goal
         if self._world_key is None:
             self._world_key = np.zeros(keys.shape[1])
         rows = np.empty(k, dtype=np.int64)
         n = W.due_rows(np.asarray(times, dtype=float), keys, self._world_key, self._since, rows)
         if not n:
             return {}
-        drawn = min(len(centers[0]) // 3, len(self._radii))
+        due = rows[:n]
+        if centers is None:  # only the drawn rows' (none to stack without obstacles)
+            width = np.size(obstacles[0])
+            centers = np.zeros((k, 0))
+            if width:
+                centers = np.zeros((k, width))
+                centers[due] = np.asarray([obstacles[r] for r in due.tolist()]).reshape(n, -1)
+        drawn = min(centers.shape[1] // 3, len(self._radii))
         layout = self._world_layout(drawn)
         spheres = np.empty((k, 1 + drawn, 3))
         spheres[:, 0] = goal
@@ -126,10 +136,10 @@ class SceneChannels:
         out = np.empty(n * layout.size, dtype=np.uint8)
         bounds = np.empty((n, 2), dtype=np.int64)
         end = W.encode_spheres(
-            np.asarray(stamps, dtype=np.int64), spheres, rows[:n], *layout.encoding, out, bounds
+            np.asarray(stamps, dtype=np.int64), spheres, due, *layout.encoding, out, bounds
         )
         data = out[:end].tobytes()
-        return {r: data[a:b] for r, (a, b) in zip(rows[:n].tolist(), bounds.tolist(), strict=True)}
+        return {r: data[a:b] for r, (a, b) in zip(due.tolist(), bounds.tolist(), strict=True)}
 
     def _world_layout(self, drawn: int) -> _WorldLayout:
         """The compiled layout of the goal and the first ``drawn`` obstacles, kept."""

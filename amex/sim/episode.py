@@ -264,7 +264,9 @@ def _run(e: Episode, recorder: Recorder | None, probe: Probe | None = None) -> E
                     check_simulation(mjd, speed_limit)
                 if recorder is not None:
                     internals = method.internals()
-                    recorder.record(_record(StepRecord, (t, state, obs, command, internals, tau, qacc)))
+                    recorder.record(
+                        _record(StepRecord, (t, state, obs, command, internals, tau, qacc))
+                    )
     except SimulationError as error:
         failure = error.reason
     except WriteError:
