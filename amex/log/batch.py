@@ -105,8 +105,8 @@ class StepBatch:
     def __len__(self) -> int:
         return self.count
 
-    def add(self, step: StepRecord, method: dict[str, Any], plan: Any) -> None:
-        """Keep ``step`` as the next row (the batch must not be full; module notes).
+    def add(self, step: StepRecord, method: dict[str, Any], plan: Any) -> int:
+        """Keep ``step`` as the next row (the batch must not be full; module notes); the count.
 
         Args:
             step: the outer step.
@@ -143,7 +143,8 @@ class StepBatch:
         self._fresh.append(
             (t, state.q, state.v, obs.y, obs.yd, obs.goal, parts, qacc_bytes, tau_bytes)
         )
-        self.count = i + 1
+        self.count = i = i + 1
+        return i
 
     def _command_row(
         self, i: int, t: float, command: tuple[np.ndarray | None, ...]

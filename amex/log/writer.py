@@ -233,6 +233,8 @@ class EpisodeLogger:
         }
         step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
         self._topics = StepTopics(ctx, self._constants, step_channels, fresh=fresh_steps)
+        self._fresh_steps = fresh_steps
+        self._raw_internals = False  # True from the second step of a method of fresh steps
         self._batch = StepBatch(  # steps kept, not yet written
             BATCH, robot.nv, np.shape(plan.y)[1], self._constants.encoding, fresh=fresh_steps
         )
@@ -385,8 +387,10 @@ class EpisodeLogger:
         plan = None  # as given: a lazy plan is computed when the batch draws it (amex.log.scene)
         if (self._steps + batch.count) % self._path_every == 0:
             plan = dict.get(internals, "plan")
-        batch.add(step, self._topics.method_values(step.t, internals), plan)
-        if batch.count >= BATCH:
+        if not self._raw_internals:  # else /method keeps a fresh method's internals as they are
+            internals = self._topics.method_values(step.t, internals)
+            self._raw_internals = self._fresh_steps
+        if batch.add(step, internals, plan) >= BATCH:
             self._flush()
 
     def _flush(self) -> None:
