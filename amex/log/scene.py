@@ -123,10 +123,8 @@ class SceneChannels:
             return {}
         due = rows[:n]
         if centers is None:  # only the drawn rows' (none to stack without obstacles)
-            width = np.size(obstacles[0])
-            centers = np.zeros((k, 0))
-            if width:
-                centers = np.zeros((k, width))
+            centers = np.zeros((k, np.size(obstacles[0])))
+            if centers.shape[1]:
                 centers[due] = np.asarray([obstacles[r] for r in due.tolist()]).reshape(n, -1)
         drawn = min(centers.shape[1] // 3, len(self._radii))
         layout = self._world_layout(drawn)

@@ -57,6 +57,9 @@ class StepTopics:
 
     Attributes:
         method_channel: ``/method``'s channel once the first step made it, else None.
+        values_are_internals: True once :meth:`method_values` would return a step's
+            ``internals()`` as they are (a fresh method's, after the first step): the logger
+            then keeps them without the call.
     """
 
     def __init__(
@@ -73,6 +76,7 @@ class StepTopics:
         self._channels = {topic: channel.base for topic, channel in channels.items()}
         self._method = MethodTopic()  # /method's schema, at the first step
         self.method_channel: foxglove.Channel | None = None
+        self.values_are_internals = False
 
     def method_values(self, t: float, internals: dict[str, Any]) -> dict[str, Any]:
         """What ``/method``'s message of a step needs: numbers, flags, texts, small arrays.
@@ -85,6 +89,7 @@ class StepTopics:
         if method.kinds is None:
             self.method_channel = method.schema(t, internals).channel("/method", self._context)
             self._channels["/method"] = self.method_channel.base
+            self.values_are_internals = self._fresh
         return internals if self._fresh else method.snapshot(internals)
 
     def messages(self, batch: StepBatch, k: int, kept: list[Kept]) -> StepMessages:

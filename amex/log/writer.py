@@ -233,8 +233,6 @@ class EpisodeLogger:
         }
         step_channels = {"/tf": self._tf, "/joint_states": self._joint_states, **self._numbers}
         self._topics = StepTopics(ctx, self._constants, step_channels, fresh=fresh_steps)
-        self._fresh_steps = fresh_steps
-        self._raw_internals = False  # True from the second step of a method of fresh steps
         self._batch = StepBatch(  # steps kept, not yet written
             BATCH, robot.nv, np.shape(plan.y)[1], self._constants.encoding, fresh=fresh_steps
         )
@@ -387,9 +385,9 @@ class EpisodeLogger:
         plan = None  # as given: a lazy plan is computed when the batch draws it (amex.log.scene)
         if (self._steps + batch.count) % self._path_every == 0:
             plan = dict.get(internals, "plan")
-        if not self._raw_internals:  # else /method keeps a fresh method's internals as they are
-            internals = self._topics.method_values(step.t, internals)
-            self._raw_internals = self._fresh_steps
+        topics = self._topics
+        if not topics.values_are_internals:  # else the internals themselves (a fresh method)
+            internals = topics.method_values(step.t, internals)
         if batch.add(step, internals, plan) >= BATCH:
             self._flush()
 
@@ -424,19 +422,13 @@ class EpisodeLogger:
                 tcp = tcps[i]
                 scene.add_path_point(tcp[0], tcp[1], tcp[2])
                 path = scene.path_update(times[i])
-                out = extras[i]
-                if out is None:
-                    out = extras[i] = []
                 if path is not None:
-                    out.append((path_log, path))
+                    _append(extras, i, (path_log, path))
                 if plan is not None:
-                    out.append((plan_log, plan))
-            i = bisect.bisect_left(times, scene.next_reference)
+                    _append(extras, i, (plan_log, plan))
+            i = bisect.bisect_left(times, scene.next_reference)  # (times increase)
             while i < count:
-                out = extras[i]
-                if out is None:
-                    out = extras[i] = []
-                out.append((reference_log, scene.reference_update(times[i])))
+                _append(extras, i, (reference_log, scene.reference_update(times[i])))
                 i = bisect.bisect_left(times, scene.next_reference, i + 1)
             tf, joint_states, tcp_log, goal, command, method = encoded.logs
             for ns, a, b, c, d, e, f, extra in zip(stamps, *encoded.columns, extras, strict=True):
@@ -470,3 +462,14 @@ class EpisodeLogger:
         self._json["/episode"].base.log(M.dumps({"t": t, "status": status, **row}), round(t * 1e9))
         self._write_metadata("outcome", {"status": status, "steps": self._steps, **row})
         self._outcome_written = True
+
+
+def _append(
+    extras: list[list[tuple[Any, bytes]] | None], i: int, message: tuple[Any, bytes]
+) -> None:
+    """Add ``message`` to step ``i``'s scene messages (a list made at the first)."""
+    out = extras[i]
+    if out is None:
+        extras[i] = [message]
+    else:
+        out.append(message)
